@@ -1,0 +1,24 @@
+//! # subwave
+//!
+//! Subdivision surfaces, wavelet subdivision surfaces, progressive coding and view-dependent
+//! refinement. See `ARCHITECTURE.md` at the repository root for the layers and data flow.
+//!
+//! The layers, bottom up:
+//! - [`mesh`]: the polygon mesh (flat `u32` face tables, `f64` positions, tags, attributes);
+//! - [`topology`]: edges, ordered 1-rings, boundary loops, components and tags, as flat tables;
+//! - [`validate`]: the report behind `subwave info` and the checks behind every algorithm;
+//! - [`io`]: OBJ, OFF, PLY, STL readers; OBJ, OFF, PLY, GLB writers;
+//! - [`generate`]: meshes the tests and the demo build themselves.
+#![warn(missing_docs)]
+
+pub mod error;
+pub mod generate;
+pub mod io;
+pub mod mesh;
+pub mod topology;
+pub mod validate;
+
+pub use error::{Error, Location, MeshError, Result};
+pub use glam::DVec3;
+pub use mesh::{EdgeTag, FaceVarying, Mesh, VertexTag, SHARPNESS_INFINITE};
+pub use topology::Topology;

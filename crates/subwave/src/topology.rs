@@ -1,0 +1,709 @@
+//! Mesh topology as flat `u32` tables: edges, ordered 1-rings, boundary loops, components, tags.
+//!
+//! Implements the mesh model of Maret 2003 §2.3 (1-rings eq. 2.3, valence and crease degree
+//! §2.3.3, interior/boundary edges §2.3.4, manifoldness §2.3.6), the ordered 1-ring
+//! construction of Algorithm 4, and the vertex tags of §3.5 (a vertex incident to one crease
+//! edge is a *dart*, to two a *crease* vertex, to more a *corner*; boundary edges count as
+//! creases).
+//!
+//! The tables follow OpenSubdiv's `Vtr::Level`: every relation is a pair of arrays
+//! (`*_offsets` of length `n + 1`, and the concatenated members), so that building is linear in
+//! the mesh size and no per-element allocation happens.
+//!
+//! **Edge order.** Edges are numbered in order of first appearance when the faces are scanned in
+//! order, each face from its first corner: edge `face_edges[c]` joins corner `c` to the next
+//! corner of the same face. The plain-subdivision ordering contract and the AFX offspring forest
+//! (trees in order of first appearance of base edges) rely on this order.
+//!
+//! **1-ring order.** For a manifold vertex, `vertex_faces` and `vertex_edges` are ordered
+//! counter-clockwise (for counter-clockwise faces): `e0, f0, e1, f1, ...` where face `f_i` lies
+//! between edges `e_i` and `e_{i+1}`, `e_i` being the *outgoing* edge of `f_i` at the vertex.
+//! A boundary vertex starts at its leading boundary edge and has one more edge than faces
+//! (OpenSubdiv's convention; Maret's ordered 1-ring `R_i` is the sequence of the edges' other
+//! ends, [`Topology::ring`]). A non-manifold vertex keeps its faces and edges in scan order.
+
+use crate::mesh::Mesh;
+
+/// Classification of a vertex's neighbourhood.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[repr(u8)]
+pub enum VertexKind {
+    /// No face uses the vertex.
+    #[default]
+    Isolated,
+    /// A closed fan of faces: the 1-ring is a cycle.
+    Interior,
+    /// An open fan: the 1-ring starts and ends on boundary edges.
+    Boundary,
+    /// The incident faces form several edge-connected fans (a pinched vertex).
+    NonManifold,
+    /// One fan, but an incident edge is non-manifold or the orientation flips around the
+    /// vertex, so the 1-ring cannot be ordered consistently.
+    Irregular,
+}
+
+/// Vertex tag of Maret §3.5 (Fig. 3.9), from the number of incident crease edges.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[repr(u8)]
+pub enum VertexTag {
+    /// No incident crease edge.
+    #[default]
+    Smooth,
+    /// Exactly one incident crease edge: the end of a crease line.
+    Dart,
+    /// Exactly two incident crease edges: on a crease line.
+    Crease,
+    /// More than two incident crease edges, or tagged as a corner.
+    Corner,
+}
+
+/// Flat topology tables of a polygon mesh. See the module documentation for the conventions.
+#[derive(Clone, Debug, Default)]
+pub struct Topology {
+    /// Number of vertices (including isolated ones).
+    pub num_vertices: u32,
+    /// Start of each face's corners in `face_vertices` / `face_edges` (length `F + 1`).
+    pub face_offsets: Vec<u32>,
+    /// Vertex of each face corner (a copy of the mesh's `face_indices`).
+    pub face_vertices: Vec<u32>,
+    /// Edge from each face corner to the next corner of the same face.
+    pub face_edges: Vec<u32>,
+    /// End vertices of each edge, in the direction the first face traversed it.
+    pub edge_vertices: Vec<[u32; 2]>,
+    /// Start of each edge's faces in `edge_faces` (length `E + 1`).
+    pub edge_face_offsets: Vec<u32>,
+    /// Faces of each edge, in face order.
+    pub edge_faces: Vec<u32>,
+    /// Start of each vertex's faces in `vertex_faces` / `vertex_face_corners` (length `V + 1`).
+    pub vertex_face_offsets: Vec<u32>,
+    /// Faces around each vertex (ordered for manifold vertices).
+    pub vertex_faces: Vec<u32>,
+    /// Local index of the vertex within each face of `vertex_faces`.
+    pub vertex_face_corners: Vec<u16>,
+    /// Start of each vertex's edges in `vertex_edges` (length `V + 1`).
+    pub vertex_edge_offsets: Vec<u32>,
+    /// Edges around each vertex (ordered for manifold vertices).
+    pub vertex_edges: Vec<u32>,
+    /// Classification of each vertex.
+    pub vertex_kinds: Vec<VertexKind>,
+    /// Crease sharpness of each edge (0 smooth; from the mesh's edge tags).
+    pub edge_sharpness: Vec<f64>,
+    /// Corner sharpness of each vertex (0 unless tagged).
+    pub vertex_sharpness: Vec<f64>,
+    /// Indices into the mesh's `edge_tags` of tags whose two vertices share no edge.
+    pub unmatched_edge_tags: Vec<u32>,
+    /// Edges whose two faces traverse them in the same direction.
+    pub inconsistent_edges: Vec<u32>,
+}
+
+impl Topology {
+    /// Builds the tables of `mesh` in time linear in its size (times the largest valence for
+    /// edge matching).
+    ///
+    /// Preconditions: `mesh.check_indices()` holds (indices in range, no face with fewer than 3
+    /// or repeated vertices). Non-manifold edges and vertices are allowed and classified.
+    /// Panics only if the preconditions are violated (indices out of range).
+    pub fn build(mesh: &Mesh) -> Self {
+        let nv = mesh.num_vertices();
+        let nf = mesh.num_faces();
+        let fo = &mesh.face_offsets;
+        let fvs = &mesh.face_indices;
+        let nc = fvs.len();
+
+        // --- Edges, by bucketing half-edges on their smaller vertex (counting sort). ---
+        let mut bucket_off = vec![0u32; nv + 1];
+        for f in 0..nf {
+            let (a, b) = (fo[f] as usize, fo[f + 1] as usize);
+            for c in a..b {
+                let n = if c + 1 == b { a } else { c + 1 };
+                let lo = fvs[c].min(fvs[n]);
+                bucket_off[lo as usize + 1] += 1;
+            }
+        }
+        for i in 0..nv {
+            bucket_off[i + 1] += bucket_off[i];
+        }
+        // Each bucket holds (other vertex, edge id) pairs of the edges found so far.
+        let mut bucket_fill = vec![0u32; nv];
+        let mut bucket: Vec<(u32, u32)> = vec![(0, 0); nc];
+        let mut face_edges = vec![0u32; nc];
+        let mut edge_vertices: Vec<[u32; 2]> = Vec::with_capacity(nc / 2 + 8);
+        let mut edge_face_count: Vec<u32> = Vec::with_capacity(nc / 2 + 8);
+        let mut inconsistent = Vec::new();
+        for f in 0..nf {
+            let (a, b) = (fo[f] as usize, fo[f + 1] as usize);
+            for c in a..b {
+                let n = if c + 1 == b { a } else { c + 1 };
+                let (u, v) = (fvs[c], fvs[n]);
+                let (lo, hi) = if u < v { (u, v) } else { (v, u) };
+                let start = bucket_off[lo as usize] as usize;
+                let fill = bucket_fill[lo as usize] as usize;
+                let found = bucket[start..start + fill].iter().find(|e| e.0 == hi).map(|e| e.1);
+                let e = match found {
+                    Some(e) => {
+                        let ef = &mut edge_face_count[e as usize];
+                        *ef += 1;
+                        // Second face traversing the edge in the same direction as the first.
+                        if *ef == 2 && edge_vertices[e as usize][0] == u {
+                            inconsistent.push(e);
+                        }
+                        e
+                    }
+                    None => {
+                        let e = edge_vertices.len() as u32;
+                        edge_vertices.push([u, v]);
+                        edge_face_count.push(1);
+                        bucket[start + fill] = (hi, e);
+                        bucket_fill[lo as usize] += 1;
+                        e
+                    }
+                };
+                face_edges[c] = e;
+            }
+        }
+        drop(bucket);
+        drop(bucket_fill);
+        drop(bucket_off);
+        let ne = edge_vertices.len();
+
+        // --- Edge -> faces. ---
+        let mut edge_face_offsets = Vec::with_capacity(ne + 1);
+        edge_face_offsets.push(0u32);
+        let mut acc = 0u32;
+        for &c in &edge_face_count {
+            acc += c;
+            edge_face_offsets.push(acc);
+        }
+        let mut fill = vec![0u32; ne];
+        let mut edge_faces = vec![0u32; acc as usize];
+        for f in 0..nf {
+            for c in fo[f] as usize..fo[f + 1] as usize {
+                let e = face_edges[c] as usize;
+                edge_faces[(edge_face_offsets[e] + fill[e]) as usize] = f as u32;
+                fill[e] += 1;
+            }
+        }
+
+        // --- Vertex -> faces (with corner) and vertex -> edges, in scan order. ---
+        let mut vertex_face_offsets = vec![0u32; nv + 1];
+        for &v in fvs {
+            vertex_face_offsets[v as usize + 1] += 1;
+        }
+        for i in 0..nv {
+            vertex_face_offsets[i + 1] += vertex_face_offsets[i];
+        }
+        let mut vfill = vec![0u32; nv];
+        let mut vertex_faces = vec![0u32; nc];
+        let mut vertex_face_corners = vec![0u16; nc];
+        for f in 0..nf {
+            let a = fo[f] as usize;
+            for c in a..fo[f + 1] as usize {
+                let v = fvs[c] as usize;
+                let slot = (vertex_face_offsets[v] + vfill[v]) as usize;
+                vertex_faces[slot] = f as u32;
+                vertex_face_corners[slot] = (c - a).min(u16::MAX as usize) as u16;
+                vfill[v] += 1;
+            }
+        }
+        let mut vertex_edge_offsets = vec![0u32; nv + 1];
+        for ev in &edge_vertices {
+            vertex_edge_offsets[ev[0] as usize + 1] += 1;
+            vertex_edge_offsets[ev[1] as usize + 1] += 1;
+        }
+        for i in 0..nv {
+            vertex_edge_offsets[i + 1] += vertex_edge_offsets[i];
+        }
+        vfill.iter_mut().for_each(|x| *x = 0);
+        let mut vertex_edges = vec![0u32; 2 * ne];
+        for (e, ev) in edge_vertices.iter().enumerate() {
+            for &v in ev {
+                let v = v as usize;
+                vertex_edges[(vertex_edge_offsets[v] + vfill[v]) as usize] = e as u32;
+                vfill[v] += 1;
+            }
+        }
+        drop(vfill);
+
+        let mut topo = Topology {
+            num_vertices: nv as u32,
+            face_offsets: fo.clone(),
+            face_vertices: fvs.clone(),
+            face_edges,
+            edge_vertices,
+            edge_face_offsets,
+            edge_faces,
+            vertex_face_offsets,
+            vertex_faces,
+            vertex_face_corners,
+            vertex_edge_offsets,
+            vertex_edges,
+            vertex_kinds: vec![VertexKind::Isolated; nv],
+            edge_sharpness: vec![0.0; ne],
+            vertex_sharpness: vec![0.0; nv],
+            unmatched_edge_tags: Vec::new(),
+            inconsistent_edges: inconsistent,
+        };
+        if topo.face_offsets.is_empty() {
+            topo.face_offsets.push(0);
+        }
+        topo.order_rings();
+        topo.apply_tags(mesh);
+        topo
+    }
+
+    /// Orders each vertex's faces and edges counter-clockwise (Maret Algorithm 4) and
+    /// classifies the vertex.
+    fn order_rings(&mut self) {
+        let nv = self.num_vertices as usize;
+        let mut faces_buf: Vec<u32> = Vec::new();
+        let mut corners_buf: Vec<u16> = Vec::new();
+        let mut edges_buf: Vec<u32> = Vec::new();
+        let mut used: Vec<bool> = Vec::new();
+        let mut fan_of: Vec<u32> = Vec::new();
+        for v in 0..nv {
+            let (fa, fb) = (self.vertex_face_offsets[v] as usize, self.vertex_face_offsets[v + 1] as usize);
+            let (ea, eb) = (self.vertex_edge_offsets[v] as usize, self.vertex_edge_offsets[v + 1] as usize);
+            let n = fb - fa;
+            if n == 0 {
+                self.vertex_kinds[v] = VertexKind::Isolated;
+                continue;
+            }
+            // Per incident corner: outgoing and incoming edge.
+            let out_in = |s: &Self, k: usize| -> (u32, u32) {
+                let f = s.vertex_faces[fa + k] as usize;
+                let i = s.vertex_face_corners[fa + k] as usize;
+                let (a, b) = (s.face_offsets[f] as usize, s.face_offsets[f + 1] as usize);
+                let prev = if i == 0 { b - 1 } else { a + i - 1 };
+                (s.face_edges[a + i], s.face_edges[prev])
+            };
+            let nfaces = |s: &Self, e: u32| s.edge_face_offsets[e as usize + 1] - s.edge_face_offsets[e as usize];
+
+            // Count edge-connected fans (through any incident edge, manifold or not).
+            fan_of.clear();
+            fan_of.resize(n, u32::MAX);
+            let mut fans = 0u32;
+            let mut nonmanifold_edge = false;
+            for k0 in 0..n {
+                if fan_of[k0] != u32::MAX {
+                    continue;
+                }
+                fan_of[k0] = fans;
+                let mut stack = vec![k0];
+                while let Some(k) = stack.pop() {
+                    let (o, i) = out_in(self, k);
+                    for k2 in 0..n {
+                        if fan_of[k2] == u32::MAX {
+                            let (o2, i2) = out_in(self, k2);
+                            if o2 == o || o2 == i || i2 == o || i2 == i {
+                                fan_of[k2] = fans;
+                                stack.push(k2);
+                            }
+                        }
+                    }
+                }
+                fans += 1;
+            }
+            for &e in &self.vertex_edges[ea..eb] {
+                if nfaces(self, e) > 2 {
+                    nonmanifold_edge = true;
+                }
+            }
+            if fans > 1 {
+                self.vertex_kinds[v] = VertexKind::NonManifold;
+                continue;
+            }
+            if nonmanifold_edge {
+                self.vertex_kinds[v] = VertexKind::Irregular;
+                continue;
+            }
+            // One fan of manifold edges: walk it. Find a start corner: on a boundary, the
+            // corner whose outgoing edge is a boundary edge.
+            let mut start = 0usize;
+            let mut boundary = false;
+            let mut start_flipped = false;
+            for k in 0..n {
+                let (o, i) = out_in(self, k);
+                if nfaces(self, o) == 1 {
+                    start = k;
+                    boundary = true;
+                    start_flipped = false;
+                    break;
+                }
+                if nfaces(self, i) == 1 && !boundary {
+                    // Only an incoming boundary edge so far: orientation flips somewhere.
+                    start = k;
+                    boundary = true;
+                    start_flipped = true;
+                }
+            }
+            faces_buf.clear();
+            corners_buf.clear();
+            edges_buf.clear();
+            used.clear();
+            used.resize(n, false);
+            let mut k = start;
+            let (o, i) = out_in(self, k);
+            let (entry, mut exit) = if start_flipped { (i, o) } else { (o, i) };
+            let mut consistent = !start_flipped;
+            edges_buf.push(entry);
+            loop {
+                used[k] = true;
+                faces_buf.push(self.vertex_faces[fa + k]);
+                corners_buf.push(self.vertex_face_corners[fa + k]);
+                edges_buf.push(exit);
+                // The other corner sharing `exit`.
+                let mut next = None;
+                for k2 in 0..n {
+                    if k2 != k {
+                        let (o2, i2) = out_in(self, k2);
+                        if o2 == exit {
+                            next = Some((k2, i2, false));
+                            break;
+                        }
+                        if i2 == exit {
+                            next = Some((k2, o2, true));
+                            break;
+                        }
+                    }
+                }
+                match next {
+                    Some((k2, e_out, flipped)) if !used[k2] => {
+                        if flipped {
+                            consistent = false;
+                        }
+                        k = k2;
+                        exit = e_out;
+                    }
+                    _ => break,
+                }
+            }
+            if !boundary {
+                // Closed fan: the last exit edge is the first entry edge; drop the duplicate.
+                edges_buf.pop();
+            }
+            let complete = faces_buf.len() == n && edges_buf.len() == eb - ea;
+            if !complete {
+                self.vertex_kinds[v] = VertexKind::Irregular;
+                continue;
+            }
+            self.vertex_faces[fa..fb].copy_from_slice(&faces_buf);
+            self.vertex_face_corners[fa..fb].copy_from_slice(&corners_buf);
+            self.vertex_edges[ea..eb].copy_from_slice(&edges_buf);
+            self.vertex_kinds[v] = if !consistent {
+                VertexKind::Irregular
+            } else if boundary {
+                VertexKind::Boundary
+            } else {
+                VertexKind::Interior
+            };
+        }
+    }
+
+    fn apply_tags(&mut self, mesh: &Mesh) {
+        for (t, tag) in mesh.edge_tags.iter().enumerate() {
+            match self.find_edge(tag.vertices[0], tag.vertices[1]) {
+                Some(e) => self.edge_sharpness[e as usize] = tag.sharpness.max(0.0),
+                None => self.unmatched_edge_tags.push(t as u32),
+            }
+        }
+        for tag in &mesh.vertex_tags {
+            if let Some(s) = self.vertex_sharpness.get_mut(tag.vertex as usize) {
+                *s = tag.sharpness.max(0.0);
+            }
+        }
+    }
+
+    /// Number of faces.
+    #[inline]
+    pub fn num_faces(&self) -> usize {
+        self.face_offsets.len() - 1
+    }
+
+    /// Number of edges.
+    #[inline]
+    pub fn num_edges(&self) -> usize {
+        self.edge_vertices.len()
+    }
+
+    /// Vertices of face `f`.
+    #[inline]
+    pub fn face_vertices(&self, f: usize) -> &[u32] {
+        &self.face_vertices[self.face_offsets[f] as usize..self.face_offsets[f + 1] as usize]
+    }
+
+    /// Edges of face `f` (edge `i` joins corner `i` to corner `i + 1`).
+    #[inline]
+    pub fn face_edges(&self, f: usize) -> &[u32] {
+        &self.face_edges[self.face_offsets[f] as usize..self.face_offsets[f + 1] as usize]
+    }
+
+    /// Faces of edge `e` (one for a boundary edge, two for an interior one, more if
+    /// non-manifold).
+    #[inline]
+    pub fn edge_faces(&self, e: usize) -> &[u32] {
+        &self.edge_faces[self.edge_face_offsets[e] as usize..self.edge_face_offsets[e + 1] as usize]
+    }
+
+    /// Faces around vertex `v` (counter-clockwise for manifold vertices).
+    #[inline]
+    pub fn vertex_faces(&self, v: usize) -> &[u32] {
+        &self.vertex_faces[self.vertex_face_offsets[v] as usize..self.vertex_face_offsets[v + 1] as usize]
+    }
+
+    /// Local index of `v` in each face of [`Topology::vertex_faces`].
+    #[inline]
+    pub fn vertex_face_corners(&self, v: usize) -> &[u16] {
+        &self.vertex_face_corners[self.vertex_face_offsets[v] as usize..self.vertex_face_offsets[v + 1] as usize]
+    }
+
+    /// Edges around vertex `v` (counter-clockwise for manifold vertices, starting at the
+    /// leading boundary edge on a boundary).
+    #[inline]
+    pub fn vertex_edges(&self, v: usize) -> &[u32] {
+        &self.vertex_edges[self.vertex_edge_offsets[v] as usize..self.vertex_edge_offsets[v + 1] as usize]
+    }
+
+    /// The other end of edge `e` seen from `v`.
+    #[inline]
+    pub fn other_vertex(&self, e: usize, v: u32) -> u32 {
+        let [a, b] = self.edge_vertices[e];
+        if a == v {
+            b
+        } else {
+            a
+        }
+    }
+
+    /// Maret's ordered 1-ring `R_v` (eq. 2.3, Algorithm 4): the neighbours of `v` in the
+    /// order of [`Topology::vertex_edges`].
+    pub fn ring(&self, v: usize) -> impl ExactSizeIterator<Item = u32> + '_ {
+        self.vertex_edges(v).iter().map(move |&e| self.other_vertex(e as usize, v as u32))
+    }
+
+    /// Valence of `v`: the number of incident edges (Maret §2.3.3).
+    #[inline]
+    pub fn valence(&self, v: usize) -> usize {
+        (self.vertex_edge_offsets[v + 1] - self.vertex_edge_offsets[v]) as usize
+    }
+
+    /// True if edge `e` has exactly one face.
+    #[inline]
+    pub fn is_boundary_edge(&self, e: usize) -> bool {
+        self.edge_face_offsets[e + 1] - self.edge_face_offsets[e] == 1
+    }
+
+    /// True if edge `e` has more than two faces.
+    #[inline]
+    pub fn is_non_manifold_edge(&self, e: usize) -> bool {
+        self.edge_face_offsets[e + 1] - self.edge_face_offsets[e] > 2
+    }
+
+    /// True if edge `e` is a crease: tagged with positive sharpness, or on the boundary
+    /// (boundary edges count as creases, Maret §3.5).
+    #[inline]
+    pub fn is_crease_edge(&self, e: usize) -> bool {
+        self.edge_sharpness[e] > 0.0 || self.is_boundary_edge(e)
+    }
+
+    /// The edge joining `a` and `b`, if any (a scan of `a`'s edges).
+    pub fn find_edge(&self, a: u32, b: u32) -> Option<u32> {
+        if a as usize >= self.num_vertices as usize || b as usize >= self.num_vertices as usize {
+            return None;
+        }
+        self.vertex_edges(a as usize)
+            .iter()
+            .copied()
+            .find(|&e| self.other_vertex(e as usize, a) == b)
+    }
+
+    /// True if every vertex is interior, boundary or isolated and no edge is non-manifold
+    /// or inconsistently oriented.
+    pub fn is_manifold(&self) -> bool {
+        self.vertex_kinds
+            .iter()
+            .all(|k| matches!(k, VertexKind::Interior | VertexKind::Boundary | VertexKind::Isolated))
+            && self.inconsistent_edges.is_empty()
+            && (0..self.num_edges()).all(|e| !self.is_non_manifold_edge(e))
+    }
+
+    /// Maret §3.5 tag of vertex `v`: counts incident crease edges (boundary edges included);
+    /// a vertex with positive corner sharpness is a corner.
+    pub fn vertex_tag(&self, v: usize) -> VertexTag {
+        if self.vertex_sharpness[v] > 0.0 {
+            return VertexTag::Corner;
+        }
+        let creases = self.vertex_edges(v).iter().filter(|&&e| self.is_crease_edge(e as usize)).count();
+        match creases {
+            0 => VertexTag::Smooth,
+            1 => VertexTag::Dart,
+            2 => VertexTag::Crease,
+            _ => VertexTag::Corner,
+        }
+    }
+
+    /// Tags of all vertices (see [`Topology::vertex_tag`]).
+    pub fn vertex_tags(&self) -> Vec<VertexTag> {
+        (0..self.num_vertices as usize).map(|v| self.vertex_tag(v)).collect()
+    }
+
+    /// Edges with more than two faces, as vertex pairs.
+    pub fn non_manifold_edges(&self) -> Vec<u32> {
+        (0..self.num_edges() as u32).filter(|&e| self.is_non_manifold_edge(e as usize)).collect()
+    }
+
+    /// Vertices whose faces form several fans.
+    pub fn non_manifold_vertices(&self) -> Vec<u32> {
+        (0..self.num_vertices)
+            .filter(|&v| self.vertex_kinds[v as usize] == VertexKind::NonManifold)
+            .collect()
+    }
+
+    /// Boundary loops: connected sets of boundary edges (joined at shared vertices). Returns
+    /// the component index of every boundary edge (`u32::MAX` for others) and the count.
+    pub fn boundary_loops(&self) -> (Vec<u32>, usize) {
+        let mut uf = UnionFind::new(self.num_vertices as usize);
+        let ne = self.num_edges();
+        for e in 0..ne {
+            if self.is_boundary_edge(e) {
+                let [a, b] = self.edge_vertices[e];
+                uf.union(a, b);
+            }
+        }
+        let mut label = vec![u32::MAX; self.num_vertices as usize];
+        let mut count = 0u32;
+        let mut out = vec![u32::MAX; ne];
+        for (e, o) in out.iter_mut().enumerate() {
+            if self.is_boundary_edge(e) {
+                let r = uf.find(self.edge_vertices[e][0]) as usize;
+                if label[r] == u32::MAX {
+                    label[r] = count;
+                    count += 1;
+                }
+                *o = label[r];
+            }
+        }
+        (out, count as usize)
+    }
+
+    /// Connected components of faces (faces sharing a vertex are connected). Returns each
+    /// face's component and the count.
+    pub fn face_components(&self) -> (Vec<u32>, usize) {
+        let mut uf = UnionFind::new(self.num_vertices as usize);
+        for f in 0..self.num_faces() {
+            let fv = self.face_vertices(f);
+            for w in fv.windows(2) {
+                uf.union(w[0], w[1]);
+            }
+        }
+        let mut label = vec![u32::MAX; self.num_vertices as usize];
+        let mut count = 0u32;
+        let comp = (0..self.num_faces())
+            .map(|f| {
+                let r = uf.find(self.face_vertices(f)[0]) as usize;
+                if label[r] == u32::MAX {
+                    label[r] = count;
+                    count += 1;
+                }
+                label[r]
+            })
+            .collect();
+        (comp, count as usize)
+    }
+
+    /// Number of referenced vertices (those with at least one face).
+    pub fn num_referenced_vertices(&self) -> usize {
+        self.vertex_kinds.iter().filter(|&&k| k != VertexKind::Isolated).count()
+    }
+
+    /// Euler characteristic χ = V − E + F over referenced vertices.
+    pub fn euler_characteristic(&self) -> i64 {
+        self.num_referenced_vertices() as i64 - self.num_edges() as i64 + self.num_faces() as i64
+    }
+
+    /// Total genus, summing `(2 − χ_c − b_c) / 2` over components `c` (b_c: boundary loops);
+    /// `None` if the mesh is not a consistently oriented 2-manifold.
+    pub fn genus(&self) -> Option<u64> {
+        if !self.is_manifold() {
+            return None;
+        }
+        let (fcomp, ncomp) = self.face_components();
+        let mut chi = vec![0i64; ncomp];
+        let mut vcomp = vec![u32::MAX; self.num_vertices as usize];
+        for f in 0..self.num_faces() {
+            let c = fcomp[f];
+            chi[c as usize] += 1;
+            for &v in self.face_vertices(f) {
+                vcomp[v as usize] = c;
+            }
+        }
+        for &c in &vcomp {
+            if c != u32::MAX {
+                chi[c as usize] += 1;
+            }
+        }
+        let mut edge_comp = vec![0u32; self.num_edges()];
+        for e in 0..self.num_edges() {
+            let c = fcomp[self.edge_faces(e)[0] as usize];
+            edge_comp[e] = c;
+            chi[c as usize] -= 1;
+        }
+        let (loops, _) = self.boundary_loops();
+        let mut seen = std::collections::HashSet::new();
+        let mut b = vec![0i64; ncomp];
+        for e in 0..self.num_edges() {
+            if loops[e] != u32::MAX && seen.insert(loops[e]) {
+                b[edge_comp[e] as usize] += 1;
+            }
+        }
+        let mut g = 0i64;
+        for c in 0..ncomp {
+            let twice = 2 - chi[c] - b[c];
+            if twice < 0 || twice % 2 != 0 {
+                return None;
+            }
+            g += twice / 2;
+        }
+        Some(g as u64)
+    }
+}
+
+/// A union-find over `u32` elements with path halving and union by size.
+#[derive(Clone, Debug)]
+pub struct UnionFind {
+    parent: Vec<u32>,
+    size: Vec<u32>,
+}
+
+impl UnionFind {
+    /// `n` singleton sets.
+    pub fn new(n: usize) -> Self {
+        UnionFind {
+            parent: (0..n as u32).collect(),
+            size: vec![1; n],
+        }
+    }
+
+    /// The representative of `x`'s set.
+    pub fn find(&mut self, mut x: u32) -> u32 {
+        while self.parent[x as usize] != x {
+            let p = self.parent[x as usize];
+            self.parent[x as usize] = self.parent[p as usize];
+            x = p;
+        }
+        x
+    }
+
+    /// Merges the sets of `a` and `b`; returns false if they were already one set.
+    pub fn union(&mut self, a: u32, b: u32) -> bool {
+        let (mut a, mut b) = (self.find(a), self.find(b));
+        if a == b {
+            return false;
+        }
+        if self.size[a as usize] < self.size[b as usize] {
+            std::mem::swap(&mut a, &mut b);
+        }
+        self.parent[b as usize] = a;
+        self.size[a as usize] += self.size[b as usize];
+        true
+    }
+}
