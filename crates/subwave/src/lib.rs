@@ -15,6 +15,7 @@ pub mod error;
 pub mod generate;
 pub mod io;
 pub mod mesh;
+pub mod subdivision;
 pub mod topology;
 pub mod validate;
 

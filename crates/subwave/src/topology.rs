@@ -94,6 +94,9 @@ pub struct Topology {
     pub unmatched_edge_tags: Vec<u32>,
     /// Edges whose two faces traverse them in the same direction.
     pub inconsistent_edges: Vec<u32>,
+    /// Whether `vertex_faces` / `vertex_edges` are in 1-ring order (see the module docs);
+    /// refined levels skip the ordering unless a scheme needs it.
+    pub rings_ordered: bool,
 }
 
 impl Topology {
@@ -164,7 +167,38 @@ impl Topology {
         drop(bucket);
         drop(bucket_fill);
         drop(bucket_off);
+        let mut topo = Self::from_edges(nv, fo.clone(), fvs.clone(), face_edges, edge_vertices, true);
+        topo.inconsistent_edges = inconsistent;
+        topo.apply_tags(mesh);
+        topo
+    }
+
+    /// Builds the remaining tables from faces and their edges (edge-faces, vertex-faces,
+    /// vertex-edges), for a refiner that numbers child edges itself.
+    ///
+    /// Preconditions: `face_edges[c]` joins corner `c` to the next corner of its face,
+    /// `edge_vertices` lists each edge's ends in the direction of its first traversal, and
+    /// edges are numbered in order of first appearance. With `order_rings`, 1-rings are ordered
+    /// and vertices classified as [`Topology::build`] does; without, 1-rings stay in scan order
+    /// and vertices are classified `Boundary` if an incident edge has one face, else `Interior`
+    /// (the refiner knows the mesh is manifold). Sharpness tables are zero.
+    pub fn from_edges(
+        nv: usize,
+        face_offsets: Vec<u32>,
+        face_vertices: Vec<u32>,
+        face_edges: Vec<u32>,
+        edge_vertices: Vec<[u32; 2]>,
+        order_rings: bool,
+    ) -> Self {
+        let fo = &face_offsets;
+        let fvs = &face_vertices;
+        let nf = fo.len().saturating_sub(1);
+        let nc = fvs.len();
         let ne = edge_vertices.len();
+        let mut edge_face_count = vec![0u32; ne];
+        for &e in &face_edges {
+            edge_face_count[e as usize] += 1;
+        }
 
         // --- Edge -> faces. ---
         let mut edge_face_offsets = Vec::with_capacity(ne + 1);
@@ -226,8 +260,8 @@ impl Topology {
 
         let mut topo = Topology {
             num_vertices: nv as u32,
-            face_offsets: fo.clone(),
-            face_vertices: fvs.clone(),
+            face_offsets,
+            face_vertices,
             face_edges,
             edge_vertices,
             edge_face_offsets,
@@ -241,13 +275,26 @@ impl Topology {
             edge_sharpness: vec![0.0; ne],
             vertex_sharpness: vec![0.0; nv],
             unmatched_edge_tags: Vec::new(),
-            inconsistent_edges: inconsistent,
+            inconsistent_edges: Vec::new(),
+            rings_ordered: order_rings,
         };
         if topo.face_offsets.is_empty() {
             topo.face_offsets.push(0);
         }
-        topo.order_rings();
-        topo.apply_tags(mesh);
+        if order_rings {
+            topo.order_rings();
+        } else {
+            for v in 0..nv {
+                let edges = topo.vertex_edges(v);
+                topo.vertex_kinds[v] = if edges.is_empty() {
+                    VertexKind::Isolated
+                } else if edges.iter().any(|&e| topo.is_boundary_edge(e as usize)) {
+                    VertexKind::Boundary
+                } else {
+                    VertexKind::Interior
+                };
+            }
+        }
         topo
     }
 

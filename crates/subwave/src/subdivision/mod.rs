@@ -1,0 +1,361 @@
+//! Plain subdivision surfaces: scheme rules, a generic refiner and stencil tables.
+//!
+//! The layers follow OpenSubdiv:
+//! - **rules** ([`rules`], one file per scheme: [`loop_scheme`], [`catmull_clark`],
+//!   [`midpoint`]): pure masks from a local neighbourhood (valence, sharpness, tags, sector);
+//! - **refinement** ([`refine`]): each child level's flat tables built directly from the
+//!   parent's, following the ordering contract documented there;
+//! - **stencils** ([`stencil`]): each level's child vertices as weighted sums of parent
+//!   vertices; refinement applies them, and [`Refinement`] keeps them for cached re-evaluation
+//!   of moving control points (Maret §5.1.1).
+//!
+//! Tags follow Maret §3.5: edge sharpness from the mesh's crease tags (and `--sharp-angle`),
+//! boundary edges infinitely sharp, vertex rules smooth / dart / crease / corner from the
+//! number of sharp incident edges or a corner tag.
+
+pub mod catmull_clark;
+pub mod loop_scheme;
+pub mod midpoint;
+pub mod refine;
+pub mod rules;
+pub mod stencil;
+
+use glam::DVec3;
+
+use crate::mesh::{EdgeTag, Mesh, VertexTag, SHARPNESS_INFINITE};
+use crate::topology::Topology;
+use crate::validate::{require_arity, require_manifold};
+use crate::{Error, Result};
+use catmull_clark::CatmullClarkRules;
+use loop_scheme::{LoopBoundary, LoopRules, LoopWeights};
+use midpoint::MidpointRules;
+use refine::Split;
+use rules::{child_edge_sharpness, decrement, Creasing, Rules};
+use stencil::{level_stencils, Interpolate, LevelContext, StencilTable};
+
+/// The subdivision schemes implemented so far.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scheme {
+    /// Loop (triangles), piecewise smooth.
+    Loop,
+    /// Midpoint: linear 1-to-4 on triangle meshes, bilinear on polygon meshes.
+    Midpoint,
+    /// Catmull-Clark (any polygons), sharp and semi-sharp creases.
+    CatmullClark,
+    /// Bilinear (any polygons, 1-to-n quads, face points at centroids).
+    Bilinear,
+}
+
+impl Scheme {
+    /// The scheme's command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Scheme::Loop => "loop",
+            Scheme::Midpoint => "midpoint",
+            Scheme::CatmullClark => "catmull-clark",
+            Scheme::Bilinear => "bilinear",
+        }
+    }
+}
+
+/// How boundary edges and vertices are treated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum BoundaryMode {
+    /// Boundary edges are creases (Maret §3.5), with Biermann et al.'s modified Loop edge rules
+    /// next to creases.
+    #[default]
+    Crease,
+    /// OpenSubdiv's `VTX_BOUNDARY_EDGE_ONLY`: boundary edges infinitely sharp, OpenSubdiv's
+    /// unmodified rules elsewhere.
+    OpenSubdiv,
+    /// OpenSubdiv's `VTX_BOUNDARY_EDGE_AND_CORNER`: as `OpenSubdiv`, and boundary vertices with
+    /// a single face are corners.
+    OpenSubdivCorners,
+}
+
+/// Options of [`subdivide`] and [`Refinement::build`].
+#[derive(Clone, Copy, Debug)]
+pub struct SubdivideOptions {
+    /// The scheme.
+    pub scheme: Scheme,
+    /// Number of refinement levels (0 returns the input).
+    pub levels: u32,
+    /// Boundary treatment.
+    pub boundary: BoundaryMode,
+    /// How semi-sharp creases relax.
+    pub creasing: Creasing,
+    /// β of Loop's smooth vertex rule.
+    pub loop_weights: LoopWeights,
+    /// Edges whose dihedral angle exceeds this many degrees become infinitely sharp creases.
+    pub sharp_angle: Option<f64>,
+}
+
+impl Default for SubdivideOptions {
+    fn default() -> Self {
+        SubdivideOptions {
+            scheme: Scheme::Loop,
+            levels: 1,
+            boundary: BoundaryMode::Crease,
+            creasing: Creasing::Uniform,
+            loop_weights: LoopWeights::Loop,
+            sharp_angle: None,
+        }
+    }
+}
+
+/// Largest number of child faces [`Refinement::build`] accepts (2^31): more would overflow
+/// `u32` indices.
+pub const MAX_FACES: u64 = 1 << 31;
+
+fn rules_for(opts: &SubdivideOptions, mesh: &Mesh) -> Box<dyn Rules> {
+    match opts.scheme {
+        Scheme::Loop => Box::new(LoopRules {
+            weights: opts.loop_weights,
+            boundary: if opts.boundary == BoundaryMode::Crease {
+                LoopBoundary::Biermann
+            } else {
+                LoopBoundary::OpenSubdiv
+            },
+        }),
+        Scheme::Midpoint => Box::new(MidpointRules {
+            split: if mesh.is_triangle_mesh() { Split::Triangles } else { Split::Polygons },
+        }),
+        Scheme::Bilinear => Box::new(MidpointRules { split: Split::Polygons }),
+        Scheme::CatmullClark => Box::new(CatmullClarkRules),
+    }
+}
+
+/// Edges of `topo` whose dihedral angle (between face normals) exceeds `degrees`.
+pub fn sharp_edges_by_angle(mesh: &Mesh, topo: &Topology, degrees: f64) -> Vec<u32> {
+    let normal = |f: usize| {
+        let fv = topo.face_vertices(f);
+        let mut n = DVec3::ZERO;
+        for i in 0..fv.len() {
+            n += mesh.positions[fv[i] as usize].cross(mesh.positions[fv[(i + 1) % fv.len()] as usize]);
+        }
+        n.normalize_or_zero()
+    };
+    let cos_limit = degrees.to_radians().cos();
+    (0..topo.num_edges() as u32)
+        .filter(|&e| {
+            let f = topo.edge_faces(e as usize);
+            f.len() == 2 && normal(f[0] as usize).dot(normal(f[1] as usize)) < cos_limit
+        })
+        .collect()
+}
+
+/// A refinement hierarchy: the topology of every level but the last, the faces of the last,
+/// and, if kept, one stencil table per level for cached re-evaluation.
+#[derive(Clone, Debug)]
+pub struct Refinement {
+    /// Topology of levels `0..levels` (the last level's topology is not built).
+    pub topologies: Vec<Topology>,
+    /// Face offsets of the finest level.
+    pub face_offsets: Vec<u32>,
+    /// Face vertices of the finest level.
+    pub face_vertices: Vec<u32>,
+    /// One table per level (`stencils[i]` maps level `i` to level `i + 1`); empty if not kept.
+    pub stencils: Vec<StencilTable>,
+    /// Positions of the finest level.
+    pub positions: Vec<DVec3>,
+    /// Crease tags of the finest level (sharp interior edges; boundaries are implicit).
+    pub edge_tags: Vec<EdgeTag>,
+    /// Corner tags of the finest level.
+    pub vertex_tags: Vec<VertexTag>,
+}
+
+impl Refinement {
+    /// Refines `mesh` `opts.levels` times, keeping the stencil tables if `keep_stencils`.
+    ///
+    /// # Errors
+    /// - [`Error::Mesh`] if the mesh violates [`Mesh::check_indices`], is not a consistently
+    ///   oriented manifold (the error lists the edges or vertices), or has faces the scheme
+    ///   cannot take (Loop on quads: the error names them and suggests Catmull-Clark);
+    /// - [`Error::InvalidArgument`] if the result would exceed [`MAX_FACES`] faces.
+    pub fn build(mesh: &Mesh, opts: &SubdivideOptions, keep_stencils: bool) -> Result<Refinement> {
+        mesh.check_indices()?;
+        if opts.scheme == Scheme::Loop {
+            require_arity(mesh, 3, "loop", "triangles", "use catmull-clark (any polygons) or quad-tri (mixed quads and triangles)")?;
+        }
+        let rules = rules_for(opts, mesh);
+        let split = rules.split();
+        let corners = mesh.face_indices.len() as u64;
+        let faces_out = match split {
+            Split::Triangles => mesh.num_faces() as u64 * 4u64.saturating_pow(opts.levels),
+            Split::Polygons => corners.saturating_mul(4u64.saturating_pow(opts.levels.saturating_sub(1))),
+        };
+        if opts.levels > 0 && faces_out > MAX_FACES {
+            return Err(Error::InvalidArgument(format!(
+                "{} levels of {} on {} faces would make {} faces, more than the {} supported; use fewer levels",
+                opts.levels,
+                opts.scheme.name(),
+                mesh.num_faces(),
+                faces_out,
+                MAX_FACES
+            )));
+        }
+        let mut topo = Topology::build(mesh);
+        require_manifold(&topo)?;
+        if let Some(deg) = opts.sharp_angle {
+            for e in sharp_edges_by_angle(mesh, &topo, deg) {
+                topo.edge_sharpness[e as usize] = SHARPNESS_INFINITE;
+            }
+        }
+        for e in 0..topo.num_edges() {
+            if topo.is_boundary_edge(e) {
+                topo.edge_sharpness[e] = SHARPNESS_INFINITE;
+            }
+        }
+        if opts.boundary == BoundaryMode::OpenSubdivCorners {
+            for v in 0..topo.num_vertices as usize {
+                if topo.vertex_faces(v).len() == 1 {
+                    topo.vertex_sharpness[v] = SHARPNESS_INFINITE;
+                }
+            }
+        }
+        let mut positions = mesh.positions.clone();
+        let mut topologies = Vec::with_capacity(opts.levels as usize);
+        let mut stencils = Vec::new();
+        let (mut face_offsets, mut face_vertices) = (topo.face_offsets.clone(), topo.face_vertices.clone());
+        let (mut edge_tags, mut vertex_tags) = (mesh.edge_tags.clone(), mesh.vertex_tags.clone());
+        for level in 0..opts.levels {
+            let ctx = LevelContext { rules: rules.as_ref(), creasing: opts.creasing, positions: &positions };
+            let table = level_stencils(&topo, &ctx);
+            positions = table.apply(&positions);
+            if keep_stencils {
+                stencils.push(table);
+            }
+            if level + 1 < opts.levels {
+                let (mut child, halves) = refine::refine_topology(&topo, split, false);
+                child_sharpness(&topo, &mut child, &halves, opts.creasing);
+                topologies.push(std::mem::replace(&mut topo, child));
+            } else {
+                (face_offsets, face_vertices) = refine::child_faces(&topo, split);
+                (edge_tags, vertex_tags) = finest_tags(&topo, opts.creasing);
+                topologies.push(std::mem::take(&mut topo));
+            }
+        }
+        if opts.levels == 0 {
+            topologies.push(topo);
+        }
+        Ok(Refinement { topologies, face_offsets, face_vertices, stencils, positions, edge_tags, vertex_tags })
+    }
+
+    /// Re-evaluates the finest level from new control values (one per level-0 vertex) with
+    /// the cached stencils, bit-identical to refining them from scratch.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] if the stencils were not kept or `control` has the wrong
+    /// length.
+    pub fn evaluate<T: Interpolate>(&self, control: &[T]) -> Result<Vec<T>> {
+        Ok(self.evaluate_levels(control)?.pop().unwrap_or_default())
+    }
+
+    /// Like [`Refinement::evaluate`], returning every level `1..=levels`.
+    ///
+    /// # Errors
+    /// As [`Refinement::evaluate`].
+    pub fn evaluate_levels<T: Interpolate>(&self, control: &[T]) -> Result<Vec<Vec<T>>> {
+        let levels = self.topologies.len();
+        if self.stencils.len() != levels || self.stencils.is_empty() && levels > 0 {
+            return Err(Error::InvalidArgument("stencils were not kept: build the refinement with keep_stencils".into()));
+        }
+        if let Some(t) = self.stencils.first() {
+            if control.len() != t.num_sources as usize {
+                return Err(Error::InvalidArgument(format!(
+                    "{} control values given, the mesh has {} vertices",
+                    control.len(),
+                    t.num_sources
+                )));
+            }
+        }
+        let mut out: Vec<Vec<T>> = Vec::with_capacity(levels);
+        for t in &self.stencils {
+            let next = t.apply(out.last().map_or(control, |v| v.as_slice()));
+            out.push(next);
+        }
+        Ok(out)
+    }
+
+    /// The finest level as a mesh (positions and faces).
+    pub fn to_mesh(&self) -> Mesh {
+        Mesh {
+            positions: self.positions.clone(),
+            face_offsets: self.face_offsets.clone(),
+            face_indices: self.face_vertices.clone(),
+            ..Mesh::new()
+        }
+    }
+}
+
+/// Sets the child level's sharpness from the parent's: each edge's halves by the creasing
+/// rule at their end, corners decremented; new edges and vertices are smooth.
+fn child_sharpness(parent: &Topology, child: &mut Topology, halves: &[[u32; 2]], creasing: Creasing) {
+    let mut incident = Vec::new();
+    for (e, h) in halves.iter().enumerate() {
+        let s = parent.edge_sharpness[e];
+        if s <= 0.0 {
+            continue;
+        }
+        for (end, &half) in h.iter().enumerate() {
+            let w = parent.edge_vertices[e][end] as usize;
+            incident.clear();
+            incident.extend(parent.vertex_edges(w).iter().map(|&x| parent.edge_sharpness[x as usize]));
+            child.edge_sharpness[half as usize] = child_edge_sharpness(creasing, s, &incident);
+        }
+    }
+    for v in 0..parent.num_vertices as usize {
+        child.vertex_sharpness[v] = decrement(parent.vertex_sharpness[v]);
+    }
+}
+
+/// Tags of the level refined from `parent`: the halves of its sharp interior edges (child
+/// edge `(w, V + e)`, sharpness by the creasing rule) and its decremented corners.
+fn finest_tags(parent: &Topology, creasing: Creasing) -> (Vec<EdgeTag>, Vec<VertexTag>) {
+    let nv = parent.num_vertices;
+    let mut edges = Vec::new();
+    let mut incident = Vec::new();
+    for e in 0..parent.num_edges() {
+        let s = parent.edge_sharpness[e];
+        if s <= 0.0 || parent.is_boundary_edge(e) {
+            continue;
+        }
+        for &w in &parent.edge_vertices[e] {
+            incident.clear();
+            incident.extend(parent.vertex_edges(w as usize).iter().map(|&x| parent.edge_sharpness[x as usize]));
+            let c = child_edge_sharpness(creasing, s, &incident);
+            if c > 0.0 {
+                edges.push(EdgeTag { vertices: [w, nv + e as u32], sharpness: c });
+            }
+        }
+    }
+    let vertices = (0..nv)
+        .filter_map(|v| {
+            let s = decrement(parent.vertex_sharpness[v as usize]);
+            (s > 0.0).then_some(VertexTag { vertex: v, sharpness: s })
+        })
+        .collect();
+    (edges, vertices)
+}
+
+/// Subdivides `mesh` and returns the finest level, with per-vertex colours and texture
+/// coordinates interpolated as vertex-varying data and crease tags carried to the new edges.
+///
+/// # Errors
+/// As [`Refinement::build`].
+pub fn subdivide(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Mesh> {
+    let carry = mesh.colors.is_some() || mesh.uvs.is_some();
+    let r = Refinement::build(mesh, opts, carry)?;
+    let mut out = r.to_mesh();
+    if carry {
+        if let Some(c) = &mesh.colors {
+            out.colors = Some(r.evaluate(c)?);
+        }
+        if let Some(t) = &mesh.uvs {
+            out.uvs = Some(r.evaluate(t)?);
+        }
+    }
+    out.edge_tags = r.edge_tags.clone();
+    out.vertex_tags = r.vertex_tags.clone();
+    Ok(out)
+}
