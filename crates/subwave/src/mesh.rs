@@ -203,13 +203,11 @@ impl Mesh {
                 return Err(MeshError::FaceTooSmall { face: f as u32, arity: (b - a) as usize });
             }
             let fv = self.face(f);
-            for (i, &v) in fv.iter().enumerate() {
-                if v as usize >= nv {
-                    return Err(MeshError::IndexOutOfRange { face: f as u32, index: v, vertices: nv });
-                }
-                if fv[..i].contains(&v) {
-                    return Err(MeshError::RepeatedVertex { face: f as u32, vertex: v });
-                }
+            if let Some(&v) = fv.iter().find(|&&v| v as usize >= nv) {
+                return Err(MeshError::IndexOutOfRange { face: f as u32, index: v, vertices: nv });
+            }
+            if let Some(v) = repeated_vertex(fv) {
+                return Err(MeshError::RepeatedVertex { face: f as u32, vertex: v });
             }
         }
         for (v, p) in self.positions.iter().enumerate() {
@@ -327,5 +325,17 @@ impl Mesh {
             *x = x.normalize_or_zero();
         }
         n
+    }
+}
+
+/// The first vertex that a face visits twice, if any: a quadratic scan for small faces, a sort
+/// for large ones (so that hostile input with huge polygons stays linearithmic).
+fn repeated_vertex(fv: &[u32]) -> Option<u32> {
+    if fv.len() <= 16 {
+        (1..fv.len()).find(|&i| fv[..i].contains(&fv[i])).map(|i| fv[i])
+    } else {
+        let mut sorted = fv.to_vec();
+        sorted.sort_unstable();
+        sorted.windows(2).find(|w| w[0] == w[1]).map(|w| w[0])
     }
 }

@@ -190,74 +190,35 @@ impl Topology {
         edge_vertices: Vec<[u32; 2]>,
         order_rings: bool,
     ) -> Self {
-        let fo = &face_offsets;
-        let fvs = &face_vertices;
-        let nf = fo.len().saturating_sub(1);
-        let nc = fvs.len();
         let ne = edge_vertices.len();
-        let mut edge_face_count = vec![0u32; ne];
-        for &e in &face_edges {
-            edge_face_count[e as usize] += 1;
-        }
-
-        // --- Edge -> faces. ---
-        let mut edge_face_offsets = Vec::with_capacity(ne + 1);
-        edge_face_offsets.push(0u32);
-        let mut acc = 0u32;
-        for &c in &edge_face_count {
-            acc += c;
-            edge_face_offsets.push(acc);
-        }
-        let mut fill = vec![0u32; ne];
-        let mut edge_faces = vec![0u32; acc as usize];
-        for f in 0..nf {
-            for c in fo[f] as usize..fo[f + 1] as usize {
-                let e = face_edges[c] as usize;
-                edge_faces[(edge_face_offsets[e] + fill[e]) as usize] = f as u32;
-                fill[e] += 1;
+        // The three relations are independent counting sorts: build them in parallel.
+        let ((edge_face_offsets, edge_faces), ((vertex_face_offsets, vertex_faces, vertex_face_corners), (vertex_edge_offsets, vertex_edges))) =
+            rayon::join(
+                || Self::edge_face_table(ne, &face_offsets, &face_edges),
+                || {
+                    rayon::join(
+                        || Self::vertex_face_table(nv, &face_offsets, &face_vertices),
+                        || Self::vertex_edge_table(nv, &edge_vertices),
+                    )
+                },
+            );
+        let vertex_kinds = if order_rings {
+            // Set for every vertex by `order_rings`.
+            vec![VertexKind::Isolated; nv]
+        } else {
+            // Every vertex with an edge is interior, unless an incident edge has one face.
+            let mut kinds: Vec<VertexKind> = vertex_edge_offsets
+                .windows(2)
+                .map(|w| if w[1] > w[0] { VertexKind::Interior } else { VertexKind::Isolated })
+                .collect();
+            for (ev, w) in edge_vertices.iter().zip(edge_face_offsets.windows(2)) {
+                if w[1] - w[0] == 1 {
+                    kinds[ev[0] as usize] = VertexKind::Boundary;
+                    kinds[ev[1] as usize] = VertexKind::Boundary;
+                }
             }
-        }
-
-        // --- Vertex -> faces (with corner) and vertex -> edges, in scan order. ---
-        let mut vertex_face_offsets = vec![0u32; nv + 1];
-        for &v in fvs {
-            vertex_face_offsets[v as usize + 1] += 1;
-        }
-        for i in 0..nv {
-            vertex_face_offsets[i + 1] += vertex_face_offsets[i];
-        }
-        let mut vfill = vec![0u32; nv];
-        let mut vertex_faces = vec![0u32; nc];
-        let mut vertex_face_corners = vec![0u16; nc];
-        for f in 0..nf {
-            let a = fo[f] as usize;
-            for c in a..fo[f + 1] as usize {
-                let v = fvs[c] as usize;
-                let slot = (vertex_face_offsets[v] + vfill[v]) as usize;
-                vertex_faces[slot] = f as u32;
-                vertex_face_corners[slot] = (c - a).min(u16::MAX as usize) as u16;
-                vfill[v] += 1;
-            }
-        }
-        let mut vertex_edge_offsets = vec![0u32; nv + 1];
-        for ev in &edge_vertices {
-            vertex_edge_offsets[ev[0] as usize + 1] += 1;
-            vertex_edge_offsets[ev[1] as usize + 1] += 1;
-        }
-        for i in 0..nv {
-            vertex_edge_offsets[i + 1] += vertex_edge_offsets[i];
-        }
-        vfill.iter_mut().for_each(|x| *x = 0);
-        let mut vertex_edges = vec![0u32; 2 * ne];
-        for (e, ev) in edge_vertices.iter().enumerate() {
-            for &v in ev {
-                let v = v as usize;
-                vertex_edges[(vertex_edge_offsets[v] + vfill[v]) as usize] = e as u32;
-                vfill[v] += 1;
-            }
-        }
-        drop(vfill);
-
+            kinds
+        };
         let mut topo = Topology {
             num_vertices: nv as u32,
             face_offsets,
@@ -271,7 +232,7 @@ impl Topology {
             vertex_face_corners,
             vertex_edge_offsets,
             vertex_edges,
-            vertex_kinds: vec![VertexKind::Isolated; nv],
+            vertex_kinds,
             edge_sharpness: vec![0.0; ne],
             vertex_sharpness: vec![0.0; nv],
             unmatched_edge_tags: Vec::new(),
@@ -283,19 +244,71 @@ impl Topology {
         }
         if order_rings {
             topo.order_rings();
-        } else {
-            for v in 0..nv {
-                let edges = topo.vertex_edges(v);
-                topo.vertex_kinds[v] = if edges.is_empty() {
-                    VertexKind::Isolated
-                } else if edges.iter().any(|&e| topo.is_boundary_edge(e as usize)) {
-                    VertexKind::Boundary
-                } else {
-                    VertexKind::Interior
-                };
-            }
         }
         topo
+    }
+
+    /// Offsets of a counting sort of items by key (`n` keys), from a pass calling the given
+    /// closure's argument once per item: `offsets[k + 1]` is the start of key `k` (offsets has
+    /// `n + 2` entries), ready for [`Topology::counting_slot`].
+    fn counting_offsets(n: usize, count: impl FnOnce(&mut dyn FnMut(u32))) -> Vec<u32> {
+        let mut off = vec![0u32; n + 2];
+        count(&mut |k| off[k as usize + 2] += 1);
+        for i in 2..n + 2 {
+            off[i] += off[i - 1];
+        }
+        off
+    }
+
+    /// The next slot of key `k` in a counting sort; after every item is placed, `offsets`
+    /// without its last entry is the usual `n + 1` offsets table.
+    #[inline]
+    fn counting_slot(off: &mut [u32], k: u32) -> usize {
+        let s = &mut off[k as usize + 1];
+        *s += 1;
+        (*s - 1) as usize
+    }
+
+    /// Edge -> faces, in face order (a stable counting sort of the corners by edge).
+    fn edge_face_table(ne: usize, fo: &[u32], face_edges: &[u32]) -> (Vec<u32>, Vec<u32>) {
+        let mut off = Self::counting_offsets(ne, |add| face_edges.iter().for_each(|&e| add(e)));
+        let mut edge_faces = vec![0u32; face_edges.len()];
+        for (f, w) in fo.windows(2).enumerate() {
+            for &e in &face_edges[w[0] as usize..w[1] as usize] {
+                edge_faces[Self::counting_slot(&mut off, e)] = f as u32;
+            }
+        }
+        off.pop();
+        (off, edge_faces)
+    }
+
+    /// Vertex -> faces and corners, in face order (scan order).
+    fn vertex_face_table(nv: usize, fo: &[u32], fvs: &[u32]) -> (Vec<u32>, Vec<u32>, Vec<u16>) {
+        let mut off = Self::counting_offsets(nv, |add| fvs.iter().for_each(|&v| add(v)));
+        let mut vertex_faces = vec![0u32; fvs.len()];
+        let mut vertex_face_corners = vec![0u16; fvs.len()];
+        for (f, w) in fo.windows(2).enumerate() {
+            for (i, &v) in fvs[w[0] as usize..w[1] as usize].iter().enumerate() {
+                let slot = Self::counting_slot(&mut off, v);
+                vertex_faces[slot] = f as u32;
+                vertex_face_corners[slot] = i.min(u16::MAX as usize) as u16;
+            }
+        }
+        off.pop();
+        (off, vertex_faces, vertex_face_corners)
+    }
+
+    /// Vertex -> edges, in edge order (scan order).
+    fn vertex_edge_table(nv: usize, edge_vertices: &[[u32; 2]]) -> (Vec<u32>, Vec<u32>) {
+        let mut off = Self::counting_offsets(nv, |add| edge_vertices.iter().flatten().for_each(|&v| add(v)));
+        let mut vertex_edges = vec![0u32; 2 * edge_vertices.len()];
+        for (e, ev) in edge_vertices.iter().enumerate() {
+            for &v in ev {
+                vertex_edges[Self::counting_slot(&mut off, v)] = e as u32;
+            }
+        }
+        off.pop();
+        (off, vertex_edges)
     }
 
     /// Orders each vertex's faces and edges counter-clockwise (Maret Algorithm 4) and
@@ -338,11 +351,11 @@ impl Topology {
                 let mut stack = vec![k0];
                 while let Some(k) = stack.pop() {
                     let (o, i) = out_in(self, k);
-                    for k2 in 0..n {
-                        if fan_of[k2] == u32::MAX {
+                    for (k2, fan) in fan_of.iter_mut().enumerate() {
+                        if *fan == u32::MAX {
                             let (o2, i2) = out_in(self, k2);
                             if o2 == o || o2 == i || i2 == o || i2 == i {
-                                fan_of[k2] = fans;
+                                *fan = fans;
                                 stack.push(k2);
                             }
                         }
@@ -676,8 +689,7 @@ impl Topology {
         let (fcomp, ncomp) = self.face_components();
         let mut chi = vec![0i64; ncomp];
         let mut vcomp = vec![u32::MAX; self.num_vertices as usize];
-        for f in 0..self.num_faces() {
-            let c = fcomp[f];
+        for (f, &c) in fcomp.iter().enumerate() {
             chi[c as usize] += 1;
             for &v in self.face_vertices(f) {
                 vcomp[v as usize] = c;
