@@ -1,1 +1,247 @@
-fn main(){}
+//! `subwave`: the command-line front end of the subwave library.
+//!
+//! This crate only parses arguments and prints; every algorithm lives in the `subwave` library.
+//! Exit codes: 0 success, 1 bad input or any other runtime error (one line `error: ...` on
+//! stderr), 2 usage error (clap's own exit code).
+
+use std::io::{IsTerminal, Write};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod convert;
+mod demo;
+mod info;
+mod print;
+mod subdivide;
+
+use subwave::io::Format;
+
+/// Exit code for bad input and every other runtime error.
+const EXIT_ERROR: u8 = 1;
+
+/// Subdivision surfaces, wavelet subdivision surfaces and progressive mesh coding.
+#[derive(Debug, Parser)]
+#[command(name = "subwave", version, about, long_about = None, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Print counts and measures of a mesh: vertices, faces, edges, boundaries, components,
+    /// Euler characteristic, genus, non-manifold elements, valences, bounding box, tags.
+    Info(InfoArgs),
+    /// Convert a mesh between formats (OBJ, OFF, PLY, STL in; OBJ, OFF, PLY, STL, GLB out).
+    Convert(ConvertArgs),
+    /// Build the embedded default mesh (Bertram's five blobs), validate it and write it with
+    /// its report into a folder.
+    Demo(DemoArgs),
+    /// Subdivide a mesh: Loop, midpoint, Catmull-Clark or bilinear, with crease/dart/corner tags
+    /// from the file's `t crease` / `t corner` lines and from --sharp-angle.
+    Subdivide(SubdivideArgs),
+}
+
+/// Arguments of `subwave subdivide`.
+#[derive(Debug, clap::Args)]
+pub struct SubdivideArgs {
+    /// The input mesh (`-` reads standard input and needs --format).
+    #[arg(value_name = "MESH")]
+    pub mesh: PathBuf,
+    /// The output mesh (obj keeps crease tags; off, ply, stl, glb).
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
+    /// The input format, if the extension does not tell it.
+    #[arg(short, long, value_name = "F", value_parser = parse_format)]
+    pub format: Option<Format>,
+    /// The output format, if the extension does not tell it.
+    #[arg(long, value_name = "F", value_parser = parse_format)]
+    pub to: Option<Format>,
+    /// The scheme.
+    #[arg(long, value_enum, default_value = "loop")]
+    pub scheme: subdivide::SchemeArg,
+    /// Number of levels.
+    #[arg(long, value_name = "N", default_value_t = 1,
+          value_parser = clap::value_parser!(u32).range(0..=12))]
+    pub levels: u32,
+    /// Edges whose dihedral angle exceeds DEG degrees become infinitely sharp creases.
+    #[arg(long, value_name = "DEG")]
+    pub sharp_angle: Option<f64>,
+    /// Boundary treatment.
+    #[arg(long, value_enum, default_value = "crease")]
+    pub boundary: subdivide::BoundaryArg,
+    /// How semi-sharp creases relax.
+    #[arg(long, value_enum, default_value = "uniform")]
+    pub creasing: subdivide::CreasingArg,
+    /// β of Loop's smooth vertex rule.
+    #[arg(long, value_enum, default_value = "loop")]
+    pub loop_weights: subdivide::LoopWeightsArg,
+}
+
+/// Arguments of `subwave info`.
+#[derive(Debug, clap::Args)]
+pub struct InfoArgs {
+    /// The mesh file (`-` reads standard input and needs --format).
+    #[arg(value_name = "MESH")]
+    pub mesh: PathBuf,
+    /// The file format, if the extension does not tell it: obj, off, ply or stl.
+    #[arg(short, long, value_name = "F", value_parser = parse_format)]
+    pub format: Option<Format>,
+    /// Print the report as JSON (the keys are the fields of `subwave::validate::MeshReport`).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `subwave convert`.
+#[derive(Debug, clap::Args)]
+pub struct ConvertArgs {
+    /// The input mesh (`-` reads standard input and needs --from).
+    #[arg(value_name = "IN")]
+    pub input: PathBuf,
+    /// The output mesh (`-` writes standard output and needs --to).
+    #[arg(value_name = "OUT")]
+    pub output: PathBuf,
+    /// The input format, if the extension does not tell it: obj, off, ply or stl.
+    #[arg(long, value_name = "F", value_parser = parse_format)]
+    pub from: Option<Format>,
+    /// The output format, if the extension does not tell it: obj, off, ply, stl or glb.
+    #[arg(long, value_name = "F", value_parser = parse_format)]
+    pub to: Option<Format>,
+    /// Remove vertices that no face uses (by default they are kept, with a warning).
+    #[arg(long)]
+    pub drop_unreferenced: bool,
+}
+
+/// Arguments of `subwave demo`.
+#[derive(Debug, clap::Args)]
+pub struct DemoArgs {
+    /// The folder to write into (created if missing).
+    #[arg(long, value_name = "DIR", default_value = "subwave-demo")]
+    pub out: PathBuf,
+    /// Midpoint-subdivision levels of the five blobs (10·4^N + 2 vertices).
+    #[arg(long, value_name = "N", default_value_t = 4,
+          value_parser = clap::value_parser!(u32).range(0..=8))]
+    pub levels: u32,
+}
+
+/// Parses a format name for clap; the message lists the valid names.
+fn parse_format(s: &str) -> Result<Format, String> {
+    Format::from_name(s)
+        .ok_or_else(|| format!("unknown format `{s}`; expected obj, off, ply, stl or glb"))
+}
+
+fn init_logging() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+    // `try_init` only fails if a subscriber is already installed; ignore that.
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .without_time()
+        .with_ansi(std::io::stderr().is_terminal())
+        .try_init();
+}
+
+/// True if the error is a closed pipe on standard output (e.g. `subwave info x | head -1`).
+fn is_broken_pipe(err: &anyhow::Error) -> bool {
+    err.chain().any(|cause| {
+        if let Some(e) = cause.downcast_ref::<std::io::Error>() {
+            return e.kind() == std::io::ErrorKind::BrokenPipe;
+        }
+        if let Some(subwave::Error::Io { source, .. }) = cause.downcast_ref::<subwave::Error>() {
+            return source.kind() == std::io::ErrorKind::BrokenPipe;
+        }
+        false
+    })
+}
+
+/// The error as one line: the context chain joined by `: `, skipping causes that an outer
+/// message already quotes (the library's errors print their source themselves), with inner
+/// line breaks replaced.
+fn one_line(err: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in err.chain() {
+        let part = cause.to_string();
+        if text.contains(&part) {
+            continue;
+        }
+        if !text.is_empty() {
+            text.push_str(": ");
+        }
+        text.push_str(&part);
+    }
+    text.split(['\n', '\r'])
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+fn main() -> ExitCode {
+    // Usage errors, --help and --version exit here with clap's codes (2 for usage errors).
+    let cli = Cli::parse();
+    init_logging();
+    let result = match cli.command {
+        Command::Info(args) => info::run(&args),
+        Command::Convert(args) => convert::run(&args),
+        Command::Demo(args) => demo::run(&args),
+        Command::Subdivide(args) => subdivide::run(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) if is_broken_pipe(&err) => ExitCode::SUCCESS,
+        Err(err) => {
+            let mut stderr = std::io::stderr().lock();
+            let _ = writeln!(stderr, "error: {}", one_line(&err));
+            ExitCode::from(EXIT_ERROR)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use anyhow::Context;
+
+    #[test]
+    fn one_line_skips_repeated_sources() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file or directory");
+        let err = anyhow::Error::from(subwave::Error::Io {
+            path: "a.obj".to_string(),
+            source: io,
+        });
+        assert_eq!(one_line(&err), "a.obj: No such file or directory");
+    }
+
+    #[test]
+    fn one_line_joins_context_and_line_breaks() {
+        let err: anyhow::Result<()> = Err(anyhow::anyhow!("first\nsecond"));
+        let err = err.context("outer").unwrap_err();
+        assert_eq!(one_line(&err), "outer: first; second");
+    }
+
+    #[test]
+    fn broken_pipe_is_detected() {
+        let err = anyhow::Error::from(std::io::Error::from(std::io::ErrorKind::BrokenPipe));
+        assert!(is_broken_pipe(&err));
+        let err = anyhow::Error::from(std::io::Error::from(std::io::ErrorKind::NotFound));
+        assert!(!is_broken_pipe(&err));
+    }
+
+    #[test]
+    fn format_names() {
+        assert_eq!(parse_format("PLY"), Ok(Format::Ply));
+        assert!(parse_format("xyz")
+            .unwrap_err()
+            .contains("obj, off, ply, stl or glb"));
+    }
+
+    #[test]
+    fn cli_definition_is_consistent() {
+        use clap::CommandFactory;
+        Cli::command().debug_assert();
+    }
+}

@@ -25,7 +25,13 @@ pub fn tetrahedron() -> Mesh {
 /// The cube `[-1, 1]^3` as 6 outward-oriented quads (8 vertices).
 pub fn cube() -> Mesh {
     let p = (0..8)
-        .map(|i| DVec3::new(if i & 1 != 0 { 1.0 } else { -1.0 }, if i & 2 != 0 { 1.0 } else { -1.0 }, if i & 4 != 0 { 1.0 } else { -1.0 }))
+        .map(|i| {
+            DVec3::new(
+                if i & 1 != 0 { 1.0 } else { -1.0 },
+                if i & 2 != 0 { 1.0 } else { -1.0 },
+                if i & 4 != 0 { 1.0 } else { -1.0 },
+            )
+        })
         .collect();
     let faces: [[u32; 4]; 6] = [
         [0, 2, 3, 1], // z = -1
@@ -55,7 +61,10 @@ pub fn icosahedron() -> Mesh {
         [-t, 0.0, -1.0],
         [-t, 0.0, 1.0],
     ];
-    let p = raw.iter().map(|a| DVec3::from_array(*a).normalize()).collect();
+    let p = raw
+        .iter()
+        .map(|a| DVec3::from_array(*a).normalize())
+        .collect();
     let f: [[u32; 3]; 20] = [
         [0, 11, 5],
         [0, 5, 1],
@@ -136,7 +145,10 @@ pub fn torus(r_major: f64, r_minor: f64, nu: u32, nv: u32, triangles: bool) -> M
         }
     }
     let id = |i: u32, j: u32| (i % nu) * nv + (j % nv);
-    let mut m = Mesh { positions: p, ..Mesh::new() };
+    let mut m = Mesh {
+        positions: p,
+        ..Mesh::new()
+    };
     for i in 0..nu {
         for j in 0..nv {
             let q = [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)];
@@ -162,7 +174,10 @@ pub fn grid(nx: u32, ny: u32, triangles: bool) -> Mesh {
         }
     }
     let id = |i: u32, j: u32| j * (nx + 1) + i;
-    let mut m = Mesh { positions: p, ..Mesh::new() };
+    let mut m = Mesh {
+        positions: p,
+        ..Mesh::new()
+    };
     for j in 0..ny {
         for i in 0..nx {
             let q = [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)];
@@ -209,7 +224,16 @@ pub fn pyramid() -> Mesh {
         DVec3::new(-1.0, 1.0, 0.0),
         DVec3::new(0.0, 0.0, 1.0),
     ];
-    Mesh::from_faces(p, [&[3u32, 2, 1, 0][..], &[0, 1, 4], &[1, 2, 4], &[2, 3, 4], &[3, 0, 4]])
+    Mesh::from_faces(
+        p,
+        [
+            &[3u32, 2, 1, 0][..],
+            &[0, 1, 4],
+            &[1, 2, 4],
+            &[2, 3, 4],
+            &[3, 0, 4],
+        ],
+    )
 }
 
 /// Two triangles sharing only a vertex (a bowtie): vertex 0 is non-manifold.
@@ -386,10 +410,21 @@ mod tests {
 
     #[test]
     fn outward_orientation() {
-        for m in [tetrahedron(), cube(), icosahedron(), pyramid(), five_blobs(1)] {
+        for m in [
+            tetrahedron(),
+            cube(),
+            icosahedron(),
+            pyramid(),
+            five_blobs(1),
+        ] {
             let n = m.vertex_normals();
             let c = m.positions.iter().sum::<DVec3>() / m.num_vertices() as f64;
-            let out = m.positions.iter().zip(&n).filter(|(p, n)| (**p - c).dot(**n) > 0.0).count();
+            let out = m
+                .positions
+                .iter()
+                .zip(&n)
+                .filter(|(p, n)| (**p - c).dot(**n) > 0.0)
+                .count();
             assert_eq!(out, m.num_vertices());
         }
     }
@@ -397,10 +432,22 @@ mod tests {
     #[test]
     fn open_meshes() {
         let r = rep(&grid(3, 2, false));
-        assert_eq!((r.vertices, r.faces, r.edges, r.boundary_edges, r.boundary_loops), (12, 6, 17, 10, 1));
+        assert_eq!(
+            (
+                r.vertices,
+                r.faces,
+                r.edges,
+                r.boundary_edges,
+                r.boundary_loops
+            ),
+            (12, 6, 17, 10, 1)
+        );
         assert_eq!(r.genus, Some(0));
         let r = rep(&disk(6));
-        assert_eq!((r.boundary_edges, r.boundary_loops, r.euler_characteristic), (6, 1, 1));
+        assert_eq!(
+            (r.boundary_edges, r.boundary_loops, r.euler_characteristic),
+            (6, 1, 1)
+        );
         let r = rep(&triangle_grid(4));
         assert_eq!(r.valence_histogram.get(&6), Some(&9));
     }
@@ -408,7 +455,10 @@ mod tests {
     #[test]
     fn broken_meshes() {
         let r = rep(&bowtie());
-        assert_eq!((r.non_manifold_vertices, r.non_manifold_edges, r.components), (1, 0, 1));
+        assert_eq!(
+            (r.non_manifold_vertices, r.non_manifold_edges, r.components),
+            (1, 0, 1)
+        );
         let r = rep(&fin());
         assert_eq!((r.non_manifold_vertices, r.non_manifold_edges), (0, 1));
         let r = rep(&flipped_tetrahedron());
@@ -425,7 +475,11 @@ mod tests {
         }
         // No folded triangles: every face normal points away from the origin.
         for f in m.faces() {
-            let (a, bb, c) = (m.positions[f[0] as usize], m.positions[f[1] as usize], m.positions[f[2] as usize]);
+            let (a, bb, c) = (
+                m.positions[f[0] as usize],
+                m.positions[f[1] as usize],
+                m.positions[f[2] as usize],
+            );
             assert!((bb - a).cross(c - a).dot(a + bb + c) > 0.0);
         }
     }

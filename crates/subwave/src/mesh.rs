@@ -77,7 +77,10 @@ impl Mesh {
     /// A mesh from positions and a list of faces (each a slice of vertex indices).
     ///
     /// Indices are not checked; call [`Mesh::check_indices`] on untrusted data.
-    pub fn from_faces<F: AsRef<[u32]>>(positions: Vec<DVec3>, faces: impl IntoIterator<Item = F>) -> Self {
+    pub fn from_faces<F: AsRef<[u32]>>(
+        positions: Vec<DVec3>,
+        faces: impl IntoIterator<Item = F>,
+    ) -> Self {
         let mut m = Mesh {
             positions,
             ..Mesh::new()
@@ -152,7 +155,10 @@ impl Mesh {
     }
 
     /// Axis-aligned bounding box `(min, max)` of the given vertices, or `None` if empty.
-    pub fn bounding_box_of(&self, vertices: impl IntoIterator<Item = u32>) -> Option<(DVec3, DVec3)> {
+    pub fn bounding_box_of(
+        &self,
+        vertices: impl IntoIterator<Item = u32>,
+    ) -> Option<(DVec3, DVec3)> {
         let mut it = vertices.into_iter();
         let first = self.positions[it.next()? as usize];
         Some(it.fold((first, first), |(lo, hi), v| {
@@ -168,7 +174,8 @@ impl Mesh {
 
     /// Length of the bounding-box diagonal (0 for an empty mesh).
     pub fn diagonal(&self) -> f64 {
-        self.bounding_box().map_or(0.0, |(lo, hi)| (hi - lo).length())
+        self.bounding_box()
+            .map_or(0.0, |(lo, hi)| (hi - lo).length())
     }
 
     /// For each vertex, whether any face references it.
@@ -200,14 +207,24 @@ impl Mesh {
                 return Err(MeshError::BadOffsets);
             }
             if b - a < 3 {
-                return Err(MeshError::FaceTooSmall { face: f as u32, arity: (b - a) as usize });
+                return Err(MeshError::FaceTooSmall {
+                    face: f as u32,
+                    arity: (b - a) as usize,
+                });
             }
             let fv = self.face(f);
             if let Some(&v) = fv.iter().find(|&&v| v as usize >= nv) {
-                return Err(MeshError::IndexOutOfRange { face: f as u32, index: v, vertices: nv });
+                return Err(MeshError::IndexOutOfRange {
+                    face: f as u32,
+                    index: v,
+                    vertices: nv,
+                });
             }
             if let Some(v) = repeated_vertex(fv) {
-                return Err(MeshError::RepeatedVertex { face: f as u32, vertex: v });
+                return Err(MeshError::RepeatedVertex {
+                    face: f as u32,
+                    vertex: v,
+                });
             }
         }
         for (v, p) in self.positions.iter().enumerate() {
@@ -217,7 +234,11 @@ impl Mesh {
         }
         let per_vertex = |name: &'static str, len: usize| {
             if len != nv {
-                Err(MeshError::AttributeLength { name, len, expected: nv })
+                Err(MeshError::AttributeLength {
+                    name,
+                    len,
+                    expected: nv,
+                })
             } else {
                 Ok(())
             }
@@ -237,19 +258,29 @@ impl Mesh {
                 });
             }
             if let Some(&bad) = fv.indices.iter().find(|&&i| i as usize >= fv.coords.len()) {
-                return Err(MeshError::AttributeIndex { name: "face_uvs", index: bad, len: fv.coords.len() });
+                return Err(MeshError::AttributeIndex {
+                    name: "face_uvs",
+                    index: bad,
+                    len: fv.coords.len(),
+                });
             }
         }
         for t in &self.edge_tags {
             for &v in &t.vertices {
                 if v as usize >= nv {
-                    return Err(MeshError::TagOutOfRange { vertex: v, vertices: nv });
+                    return Err(MeshError::TagOutOfRange {
+                        vertex: v,
+                        vertices: nv,
+                    });
                 }
             }
         }
         for t in &self.vertex_tags {
             if t.vertex as usize >= nv {
-                return Err(MeshError::TagOutOfRange { vertex: t.vertex, vertices: nv });
+                return Err(MeshError::TagOutOfRange {
+                    vertex: t.vertex,
+                    vertices: nv,
+                });
             }
         }
         Ok(())
@@ -271,7 +302,10 @@ impl Mesh {
             return map;
         }
         let keep = |v: usize| used[v];
-        self.positions = (0..self.positions.len()).filter(|&v| keep(v)).map(|v| self.positions[v]).collect();
+        self.positions = (0..self.positions.len())
+            .filter(|&v| keep(v))
+            .map(|v| self.positions[v])
+            .collect();
         if let Some(c) = &mut self.colors {
             *c = (0..c.len()).filter(|&v| keep(v)).map(|v| c[v]).collect();
         }
@@ -281,7 +315,8 @@ impl Mesh {
         for v in &mut self.face_indices {
             *v = map[*v as usize];
         }
-        self.edge_tags.retain(|t| t.vertices.iter().all(|&v| keep(v as usize)));
+        self.edge_tags
+            .retain(|t| t.vertices.iter().all(|&v| keep(v as usize)));
         for t in &mut self.edge_tags {
             t.vertices = t.vertices.map(|v| map[v as usize]);
         }
@@ -332,7 +367,9 @@ impl Mesh {
 /// for large ones (so that hostile input with huge polygons stays linearithmic).
 fn repeated_vertex(fv: &[u32]) -> Option<u32> {
     if fv.len() <= 16 {
-        (1..fv.len()).find(|&i| fv[..i].contains(&fv[i])).map(|i| fv[i])
+        (1..fv.len())
+            .find(|&i| fv[..i].contains(&fv[i]))
+            .map(|i| fv[i])
     } else {
         let mut sorted = fv.to_vec();
         sorted.sort_unstable();

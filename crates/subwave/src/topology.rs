@@ -141,7 +141,10 @@ impl Topology {
                 let (lo, hi) = if u < v { (u, v) } else { (v, u) };
                 let start = bucket_off[lo as usize] as usize;
                 let fill = bucket_fill[lo as usize] as usize;
-                let found = bucket[start..start + fill].iter().find(|e| e.0 == hi).map(|e| e.1);
+                let found = bucket[start..start + fill]
+                    .iter()
+                    .find(|e| e.0 == hi)
+                    .map(|e| e.1);
                 let e = match found {
                     Some(e) => {
                         let ef = &mut edge_face_count[e as usize];
@@ -167,7 +170,8 @@ impl Topology {
         drop(bucket);
         drop(bucket_fill);
         drop(bucket_off);
-        let mut topo = Self::from_edges(nv, fo.clone(), fvs.clone(), face_edges, edge_vertices, true);
+        let mut topo =
+            Self::from_edges(nv, fo.clone(), fvs.clone(), face_edges, edge_vertices, true);
         topo.inconsistent_edges = inconsistent;
         topo.apply_tags(mesh);
         topo
@@ -192,16 +196,21 @@ impl Topology {
     ) -> Self {
         let ne = edge_vertices.len();
         // The three relations are independent counting sorts: build them in parallel.
-        let ((edge_face_offsets, edge_faces), ((vertex_face_offsets, vertex_faces, vertex_face_corners), (vertex_edge_offsets, vertex_edges))) =
-            rayon::join(
-                || Self::edge_face_table(ne, &face_offsets, &face_edges),
-                || {
-                    rayon::join(
-                        || Self::vertex_face_table(nv, &face_offsets, &face_vertices),
-                        || Self::vertex_edge_table(nv, &edge_vertices),
-                    )
-                },
-            );
+        let (
+            (edge_face_offsets, edge_faces),
+            (
+                (vertex_face_offsets, vertex_faces, vertex_face_corners),
+                (vertex_edge_offsets, vertex_edges),
+            ),
+        ) = rayon::join(
+            || Self::edge_face_table(ne, &face_offsets, &face_edges),
+            || {
+                rayon::join(
+                    || Self::vertex_face_table(nv, &face_offsets, &face_vertices),
+                    || Self::vertex_edge_table(nv, &edge_vertices),
+                )
+            },
+        );
         let vertex_kinds = if order_rings {
             // Set for every vertex by `order_rings`.
             vec![VertexKind::Isolated; nv]
@@ -209,7 +218,13 @@ impl Topology {
             // Every vertex with an edge is interior, unless an incident edge has one face.
             let mut kinds: Vec<VertexKind> = vertex_edge_offsets
                 .windows(2)
-                .map(|w| if w[1] > w[0] { VertexKind::Interior } else { VertexKind::Isolated })
+                .map(|w| {
+                    if w[1] > w[0] {
+                        VertexKind::Interior
+                    } else {
+                        VertexKind::Isolated
+                    }
+                })
                 .collect();
             for (ev, w) in edge_vertices.iter().zip(edge_face_offsets.windows(2)) {
                 if w[1] - w[0] == 1 {
@@ -300,7 +315,9 @@ impl Topology {
 
     /// Vertex -> edges, in edge order (scan order).
     fn vertex_edge_table(nv: usize, edge_vertices: &[[u32; 2]]) -> (Vec<u32>, Vec<u32>) {
-        let mut off = Self::counting_offsets(nv, |add| edge_vertices.iter().flatten().for_each(|&v| add(v)));
+        let mut off = Self::counting_offsets(nv, |add| {
+            edge_vertices.iter().flatten().for_each(|&v| add(v))
+        });
         let mut vertex_edges = vec![0u32; 2 * edge_vertices.len()];
         for (e, ev) in edge_vertices.iter().enumerate() {
             for &v in ev {
@@ -321,8 +338,14 @@ impl Topology {
         let mut used: Vec<bool> = Vec::new();
         let mut fan_of: Vec<u32> = Vec::new();
         for v in 0..nv {
-            let (fa, fb) = (self.vertex_face_offsets[v] as usize, self.vertex_face_offsets[v + 1] as usize);
-            let (ea, eb) = (self.vertex_edge_offsets[v] as usize, self.vertex_edge_offsets[v + 1] as usize);
+            let (fa, fb) = (
+                self.vertex_face_offsets[v] as usize,
+                self.vertex_face_offsets[v + 1] as usize,
+            );
+            let (ea, eb) = (
+                self.vertex_edge_offsets[v] as usize,
+                self.vertex_edge_offsets[v + 1] as usize,
+            );
             let n = fb - fa;
             if n == 0 {
                 self.vertex_kinds[v] = VertexKind::Isolated;
@@ -336,7 +359,9 @@ impl Topology {
                 let prev = if i == 0 { b - 1 } else { a + i - 1 };
                 (s.face_edges[a + i], s.face_edges[prev])
             };
-            let nfaces = |s: &Self, e: u32| s.edge_face_offsets[e as usize + 1] - s.edge_face_offsets[e as usize];
+            let nfaces = |s: &Self, e: u32| {
+                s.edge_face_offsets[e as usize + 1] - s.edge_face_offsets[e as usize]
+            };
 
             // Count edge-connected fans (through any incident edge, manifold or not).
             fan_of.clear();
@@ -507,20 +532,23 @@ impl Topology {
     /// Faces around vertex `v` (counter-clockwise for manifold vertices).
     #[inline]
     pub fn vertex_faces(&self, v: usize) -> &[u32] {
-        &self.vertex_faces[self.vertex_face_offsets[v] as usize..self.vertex_face_offsets[v + 1] as usize]
+        &self.vertex_faces
+            [self.vertex_face_offsets[v] as usize..self.vertex_face_offsets[v + 1] as usize]
     }
 
     /// Local index of `v` in each face of [`Topology::vertex_faces`].
     #[inline]
     pub fn vertex_face_corners(&self, v: usize) -> &[u16] {
-        &self.vertex_face_corners[self.vertex_face_offsets[v] as usize..self.vertex_face_offsets[v + 1] as usize]
+        &self.vertex_face_corners
+            [self.vertex_face_offsets[v] as usize..self.vertex_face_offsets[v + 1] as usize]
     }
 
     /// Edges around vertex `v` (counter-clockwise for manifold vertices, starting at the
     /// leading boundary edge on a boundary).
     #[inline]
     pub fn vertex_edges(&self, v: usize) -> &[u32] {
-        &self.vertex_edges[self.vertex_edge_offsets[v] as usize..self.vertex_edge_offsets[v + 1] as usize]
+        &self.vertex_edges
+            [self.vertex_edge_offsets[v] as usize..self.vertex_edge_offsets[v + 1] as usize]
     }
 
     /// The other end of edge `e` seen from `v`.
@@ -537,7 +565,9 @@ impl Topology {
     /// Maret's ordered 1-ring `R_v` (eq. 2.3, Algorithm 4): the neighbours of `v` in the
     /// order of [`Topology::vertex_edges`].
     pub fn ring(&self, v: usize) -> impl ExactSizeIterator<Item = u32> + '_ {
-        self.vertex_edges(v).iter().map(move |&e| self.other_vertex(e as usize, v as u32))
+        self.vertex_edges(v)
+            .iter()
+            .map(move |&e| self.other_vertex(e as usize, v as u32))
     }
 
     /// Valence of `v`: the number of incident edges (Maret §2.3.3).
@@ -579,10 +609,12 @@ impl Topology {
     /// True if every vertex is interior, boundary or isolated and no edge is non-manifold
     /// or inconsistently oriented.
     pub fn is_manifold(&self) -> bool {
-        self.vertex_kinds
-            .iter()
-            .all(|k| matches!(k, VertexKind::Interior | VertexKind::Boundary | VertexKind::Isolated))
-            && self.inconsistent_edges.is_empty()
+        self.vertex_kinds.iter().all(|k| {
+            matches!(
+                k,
+                VertexKind::Interior | VertexKind::Boundary | VertexKind::Isolated
+            )
+        }) && self.inconsistent_edges.is_empty()
             && (0..self.num_edges()).all(|e| !self.is_non_manifold_edge(e))
     }
 
@@ -592,7 +624,11 @@ impl Topology {
         if self.vertex_sharpness[v] > 0.0 {
             return VertexTag::Corner;
         }
-        let creases = self.vertex_edges(v).iter().filter(|&&e| self.is_crease_edge(e as usize)).count();
+        let creases = self
+            .vertex_edges(v)
+            .iter()
+            .filter(|&&e| self.is_crease_edge(e as usize))
+            .count();
         match creases {
             0 => VertexTag::Smooth,
             1 => VertexTag::Dart,
@@ -603,12 +639,16 @@ impl Topology {
 
     /// Tags of all vertices (see [`Topology::vertex_tag`]).
     pub fn vertex_tags(&self) -> Vec<VertexTag> {
-        (0..self.num_vertices as usize).map(|v| self.vertex_tag(v)).collect()
+        (0..self.num_vertices as usize)
+            .map(|v| self.vertex_tag(v))
+            .collect()
     }
 
     /// Edges with more than two faces, as vertex pairs.
     pub fn non_manifold_edges(&self) -> Vec<u32> {
-        (0..self.num_edges() as u32).filter(|&e| self.is_non_manifold_edge(e as usize)).collect()
+        (0..self.num_edges() as u32)
+            .filter(|&e| self.is_non_manifold_edge(e as usize))
+            .collect()
     }
 
     /// Vertices whose faces form several fans.
@@ -672,7 +712,10 @@ impl Topology {
 
     /// Number of referenced vertices (those with at least one face).
     pub fn num_referenced_vertices(&self) -> usize {
-        self.vertex_kinds.iter().filter(|&&k| k != VertexKind::Isolated).count()
+        self.vertex_kinds
+            .iter()
+            .filter(|&&k| k != VertexKind::Isolated)
+            .count()
     }
 
     /// Euler characteristic χ = V − E + F over referenced vertices.

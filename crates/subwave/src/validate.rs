@@ -85,7 +85,9 @@ pub fn report(mesh: &Mesh, topo: &Topology) -> MeshReport {
     let mut valence_histogram = BTreeMap::new();
     let mut tags = TagCounts::default();
     for &v in &referenced {
-        *valence_histogram.entry(topo.valence(v as usize)).or_insert(0) += 1;
+        *valence_histogram
+            .entry(topo.valence(v as usize))
+            .or_insert(0) += 1;
         match topo.vertex_tag(v as usize) {
             VertexTag::Smooth => tags.smooth += 1,
             VertexTag::Dart => tags.dart += 1,
@@ -96,7 +98,9 @@ pub fn report(mesh: &Mesh, topo: &Topology) -> MeshReport {
     let (lo, hi) = mesh
         .bounding_box_of(referenced.iter().copied())
         .unwrap_or((glam::DVec3::ZERO, glam::DVec3::ZERO));
-    let boundary_edges = (0..topo.num_edges()).filter(|&e| topo.is_boundary_edge(e)).count();
+    let boundary_edges = (0..topo.num_edges())
+        .filter(|&e| topo.is_boundary_edge(e))
+        .count();
     MeshReport {
         vertices: mesh.num_vertices(),
         referenced_vertices: referenced.len(),
@@ -131,7 +135,10 @@ pub fn require_manifold(topo: &Topology) -> Result<(), MeshError> {
     let edges = topo.non_manifold_edges();
     if !edges.is_empty() {
         return Err(MeshError::NonManifoldEdges {
-            edges: edges.iter().map(|&e| topo.edge_vertices[e as usize]).collect(),
+            edges: edges
+                .iter()
+                .map(|&e| topo.edge_vertices[e as usize])
+                .collect(),
         });
     }
     let vertices = topo.non_manifold_vertices();
@@ -140,7 +147,11 @@ pub fn require_manifold(topo: &Topology) -> Result<(), MeshError> {
     }
     if !topo.inconsistent_edges.is_empty() {
         return Err(MeshError::InconsistentOrientation {
-            edges: topo.inconsistent_edges.iter().map(|&e| topo.edge_vertices[e as usize]).collect(),
+            edges: topo
+                .inconsistent_edges
+                .iter()
+                .map(|&e| topo.edge_vertices[e as usize])
+                .collect(),
         });
     }
     // A single fan whose orientation flips inside it is caught above (its edges are
@@ -168,6 +179,11 @@ pub fn require_arity(
     if faces.is_empty() {
         Ok(())
     } else {
-        Err(MeshError::UnsupportedFaces { scheme, needs, faces, hint })
+        Err(MeshError::UnsupportedFaces {
+            scheme,
+            needs,
+            faces,
+            hint,
+        })
     }
 }

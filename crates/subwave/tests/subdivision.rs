@@ -8,12 +8,21 @@ use subwave::subdivision::{subdivide, BoundaryMode, Refinement, Scheme, Subdivid
 use subwave::{EdgeTag, Mesh, Topology, VertexTag, SHARPNESS_INFINITE};
 
 fn opts(scheme: Scheme, levels: u32) -> SubdivideOptions {
-    SubdivideOptions { scheme, levels, ..Default::default() }
+    SubdivideOptions {
+        scheme,
+        levels,
+        ..Default::default()
+    }
 }
 
 fn counts(m: &Mesh) -> (usize, usize, usize, i64) {
     let t = Topology::build(m);
-    (m.num_vertices(), t.num_edges(), m.num_faces(), t.euler_characteristic())
+    (
+        m.num_vertices(),
+        t.num_edges(),
+        m.num_faces(),
+        t.euler_characteristic(),
+    )
 }
 
 fn tri_meshes() -> Vec<Mesh> {
@@ -27,7 +36,12 @@ fn tri_meshes() -> Vec<Mesh> {
 }
 
 fn poly_meshes() -> Vec<Mesh> {
-    vec![generate::cube(), generate::pyramid(), generate::torus(1.0, 0.4, 6, 5, false), generate::grid(3, 2, false)]
+    vec![
+        generate::cube(),
+        generate::pyramid(),
+        generate::torus(1.0, 0.4, 6, 5, false),
+        generate::grid(3, 2, false),
+    ]
 }
 
 #[test]
@@ -53,7 +67,11 @@ fn counts_and_euler() {
 }
 
 fn affine(p: DVec3) -> DVec3 {
-    DMat3::from_cols(DVec3::new(1.2, 0.3, -0.1), DVec3::new(-0.4, 0.9, 0.2), DVec3::new(0.1, 0.5, 1.7)) * p
+    DMat3::from_cols(
+        DVec3::new(1.2, 0.3, -0.1),
+        DVec3::new(-0.4, 0.9, 0.2),
+        DVec3::new(0.1, 0.5, 1.7),
+    ) * p
         + DVec3::new(3.0, -2.0, 0.5)
 }
 
@@ -99,11 +117,21 @@ fn loop_on_regular_grid_is_the_quartic_box_spline() {
             m.positions[(j * (n as i64 + 1) + i) as usize].z = h(i, j);
         }
     }
-    let out = subdivide(&m, &SubdivideOptions { boundary: BoundaryMode::OpenSubdiv, ..opts(Scheme::Loop, 1) }).unwrap();
+    let out = subdivide(
+        &m,
+        &SubdivideOptions {
+            boundary: BoundaryMode::OpenSubdiv,
+            ..opts(Scheme::Loop, 1)
+        },
+    )
+    .unwrap();
     // Find child vertices by their (x, y) on the refined lattice.
     let lattice = |p: DVec3| {
         let y = p.y / (3f64.sqrt() / 2.0);
-        ((2.0 * (p.x - 0.5 * y)).round() as i64, (2.0 * y).round() as i64)
+        (
+            (2.0 * (p.x - 0.5 * y)).round() as i64,
+            (2.0 * y).round() as i64,
+        )
     };
     let mut checked = 0;
     for p in &out.positions {
@@ -116,7 +144,13 @@ fn loop_on_regular_grid_is_the_quartic_box_spline() {
             (0, 0) => {
                 let (i, j) = (x2 / 2, y2 / 2);
                 10.0 / 16.0 * h(i, j)
-                    + (h(i + 1, j) + h(i - 1, j) + h(i, j + 1) + h(i, j - 1) + h(i + 1, j + 1) + h(i - 1, j - 1)) / 16.0
+                    + (h(i + 1, j)
+                        + h(i - 1, j)
+                        + h(i, j + 1)
+                        + h(i, j - 1)
+                        + h(i + 1, j + 1)
+                        + h(i - 1, j - 1))
+                        / 16.0
             }
             (1, 0) => {
                 let (i, j) = ((x2 - 1) / 2, y2 / 2);
@@ -131,7 +165,11 @@ fn loop_on_regular_grid_is_the_quartic_box_spline() {
                 0.375 * (h(i, j) + h(i + 1, j + 1)) + 0.125 * (h(i + 1, j) + h(i, j + 1))
             }
         };
-        assert!((p.z - expect).abs() < 1e-12, "at {x2},{y2}: {} vs {expect}", p.z);
+        assert!(
+            (p.z - expect).abs() < 1e-12,
+            "at {x2},{y2}: {} vs {expect}",
+            p.z
+        );
         checked += 1;
     }
     assert!(checked > 50);
@@ -181,7 +219,10 @@ fn corners_never_move_and_sharp_cube_stays_a_cube() {
     m.edge_tags = t
         .edge_vertices
         .iter()
-        .map(|&v| EdgeTag { vertices: v, sharpness: SHARPNESS_INFINITE })
+        .map(|&v| EdgeTag {
+            vertices: v,
+            sharpness: SHARPNESS_INFINITE,
+        })
         .collect();
     let out = subdivide(&m, &opts(Scheme::CatmullClark, 3)).unwrap();
     for (v, p) in out.positions.iter().enumerate().take(8) {
@@ -194,7 +235,10 @@ fn corners_never_move_and_sharp_cube_stays_a_cube() {
     }
     // A corner tag on a smooth icosphere vertex pins it.
     let mut s = generate::icosphere(1);
-    s.vertex_tags.push(VertexTag { vertex: 3, sharpness: SHARPNESS_INFINITE });
+    s.vertex_tags.push(VertexTag {
+        vertex: 3,
+        sharpness: SHARPNESS_INFINITE,
+    });
     let out = subdivide(&s, &opts(Scheme::Loop, 3)).unwrap();
     assert_eq!(out.positions[3], s.positions[3]);
     assert_ne!(out.positions[4], s.positions[4]);
@@ -202,11 +246,23 @@ fn corners_never_move_and_sharp_cube_stays_a_cube() {
 
 #[test]
 fn loop_on_quads_names_the_faces() {
-    let err = subdivide(&generate::pyramid(), &opts(Scheme::Loop, 1)).unwrap_err().to_string();
-    assert!(err.contains("face") && err.contains('0') && err.contains("catmull-clark"), "{err}");
-    let err = subdivide(&generate::fin(), &opts(Scheme::Loop, 1)).unwrap_err().to_string();
-    assert!(err.contains("non-manifold edge") && err.contains("0-1"), "{err}");
-    let err = subdivide(&generate::bowtie(), &opts(Scheme::Loop, 1)).unwrap_err().to_string();
+    let err = subdivide(&generate::pyramid(), &opts(Scheme::Loop, 1))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("face") && err.contains('0') && err.contains("catmull-clark"),
+        "{err}"
+    );
+    let err = subdivide(&generate::fin(), &opts(Scheme::Loop, 1))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("non-manifold edge") && err.contains("0-1"),
+        "{err}"
+    );
+    let err = subdivide(&generate::bowtie(), &opts(Scheme::Loop, 1))
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("non-manifold vertex"), "{err}");
 }
 
@@ -218,8 +274,14 @@ fn semi_sharp_creases_interpolate_between_smooth_and_sharp() {
     let e = topo.edge_vertices[0];
     let run = |s: f64, creasing: Creasing| {
         let mut m = base.clone();
-        m.edge_tags = vec![EdgeTag { vertices: e, sharpness: s }];
-        let o = SubdivideOptions { creasing, ..opts(Scheme::CatmullClark, 4) };
+        m.edge_tags = vec![EdgeTag {
+            vertices: e,
+            sharpness: s,
+        }];
+        let o = SubdivideOptions {
+            creasing,
+            ..opts(Scheme::CatmullClark, 4)
+        };
         subdivide(&m, &o).unwrap().positions[e[0] as usize]
     };
     for creasing in [Creasing::Uniform, Creasing::Chaikin] {

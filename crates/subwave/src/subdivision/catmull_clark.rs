@@ -9,8 +9,8 @@
 
 use super::refine::Split;
 use super::rules::{
-    edge_mask_with_sharpness, vertex_mask_with_transition, EdgeMask, EdgeNeighborhood, Rule, Rules, VertexMask,
-    VertexNeighborhood,
+    edge_mask_with_sharpness, vertex_mask_with_transition, EdgeMask, EdgeNeighborhood, Rule, Rules,
+    VertexMask, VertexNeighborhood,
 };
 
 /// The Catmull-Clark scheme's rules.

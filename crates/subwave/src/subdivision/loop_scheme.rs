@@ -17,8 +17,8 @@
 
 use super::refine::Split;
 use super::rules::{
-    edge_mask_with_sharpness, vertex_mask_with_transition, EdgeMask, EdgeNeighborhood, Rule, Rules, VertexMask,
-    VertexNeighborhood,
+    edge_mask_with_sharpness, vertex_mask_with_transition, EdgeMask, EdgeNeighborhood, Rule, Rules,
+    VertexMask, VertexNeighborhood,
 };
 
 /// Which β the smooth vertex rule uses.
@@ -120,7 +120,10 @@ impl Rules for LoopRules {
             if self.boundary != LoopBoundary::Biermann || n.num_faces != 2 {
                 return;
             }
-            let g = [n.ends[0].as_ref().and_then(Self::gamma), n.ends[1].as_ref().and_then(Self::gamma)];
+            let g = [
+                n.ends[0].as_ref().and_then(Self::gamma),
+                n.ends[1].as_ref().and_then(Self::gamma),
+            ];
             let one_sided = |g: f64, crease_end: usize| {
                 let mut e = [0.0; 2];
                 e[crease_end] = 0.75 - g;
@@ -150,7 +153,10 @@ mod tests {
         let r = LoopRules::default();
         // Valence 6: β = 1/16.
         assert!((r.beta(6) - 1.0 / 16.0).abs() < 1e-15);
-        let w = LoopRules { weights: LoopWeights::Warren, ..r };
+        let w = LoopRules {
+            weights: LoopWeights::Warren,
+            ..r
+        };
         assert_eq!(w.beta(3), 3.0 / 16.0);
         assert_eq!(w.beta(6), 1.0 / 16.0);
         let zeros = [0.0; 16];
@@ -176,7 +182,11 @@ mod tests {
         r.vertex_mask(&n, &mut m, &mut s);
         assert_eq!(m.vertex, 0.75);
         assert_eq!(m.edges, vec![0.125, 0.0, 0.0, 0.125, 0.0]);
-        let n = VertexNeighborhood { vertex_sharpness: 10.0, child_vertex_sharpness: 10.0, ..n };
+        let n = VertexNeighborhood {
+            vertex_sharpness: 10.0,
+            child_vertex_sharpness: 10.0,
+            ..n
+        };
         r.vertex_mask(&n, &mut m, &mut s);
         assert_eq!(m.vertex, 1.0);
     }
@@ -185,22 +195,43 @@ mod tests {
     fn biermann_edge_rule() {
         let r = LoopRules::default();
         let (mut m, mut s) = (EdgeMask::default(), EdgeMask::default());
-        let sector = |faces| Some(Sector { rule: Rule::Crease, faces, angle: std::f64::consts::PI });
+        let sector = |faces| {
+            Some(Sector {
+                rule: Rule::Crease,
+                faces,
+                angle: std::f64::consts::PI,
+            })
+        };
         // A regular crease vertex (k = 3) gives the smooth rule.
-        let n = EdgeNeighborhood { sharpness: 0.0, num_faces: 2, face_arity: 3, ends: [sector(3), None] };
+        let n = EdgeNeighborhood {
+            sharpness: 0.0,
+            num_faces: 2,
+            face_arity: 3,
+            ends: [sector(3), None],
+        };
         r.edge_mask(&n, &mut m, &mut s);
         assert!((m.ends[0] - 0.375).abs() < 1e-15 && (m.ends[1] - 0.375).abs() < 1e-15);
         // k = 1: θ = π, γ = 3/4: the crease end gets 0.
-        let n = EdgeNeighborhood { ends: [None, sector(1)], ..n };
+        let n = EdgeNeighborhood {
+            ends: [None, sector(1)],
+            ..n
+        };
         r.edge_mask(&n, &mut m, &mut s);
         assert!((m.ends[1]).abs() < 1e-15 && (m.ends[0] - 0.75).abs() < 1e-15);
         assert!((m.sum() - 1.0).abs() < 1e-15);
         // Crease edges: the midpoint.
-        let n = EdgeNeighborhood { sharpness: 10.0, ..n };
+        let n = EdgeNeighborhood {
+            sharpness: 10.0,
+            ..n
+        };
         r.edge_mask(&n, &mut m, &mut s);
         assert_eq!(m.ends, [0.5, 0.5]);
         // Semi-sharp 0.25: a quarter crease, three quarters smooth.
-        let n = EdgeNeighborhood { sharpness: 0.25, ends: [None, None], ..n };
+        let n = EdgeNeighborhood {
+            sharpness: 0.25,
+            ends: [None, None],
+            ..n
+        };
         r.edge_mask(&n, &mut m, &mut s);
         assert!((m.ends[0] - (0.25 * 0.5 + 0.75 * 0.375)).abs() < 1e-15);
     }

@@ -6,8 +6,8 @@
 //! - **refinement** ([`refine`]): each child level's flat tables built directly from the
 //!   parent's, following the ordering contract documented there;
 //! - **stencils** ([`stencil`]): each level's child vertices as weighted sums of parent
-//!   vertices; refinement applies them, and [`Refinement`] keeps them for cached re-evaluation
-//!   of moving control points (Maret §5.1.1).
+//!   vertices; refinement evaluates them (directly, or through tables that [`Refinement`]
+//!   keeps for cached re-evaluation of moving control points, Maret §5.1.1, bit-identically).
 //!
 //! Tags follow Maret §3.5: edge sharpness from the mesh's crease tags (and `--sharp-angle`),
 //! boundary edges infinitely sharp, vertex rules smooth / dart / crease / corner from the
@@ -31,7 +31,7 @@ use loop_scheme::{LoopBoundary, LoopRules, LoopWeights};
 use midpoint::MidpointRules;
 use refine::Split;
 use rules::{child_edge_sharpness, decrement, Creasing, Rules};
-use stencil::{level_stencils, Interpolate, LevelContext, StencilTable};
+use stencil::{level_apply, level_stencils, Interpolate, LevelContext, StencilTable};
 
 /// The subdivision schemes implemented so far.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -118,9 +118,15 @@ fn rules_for(opts: &SubdivideOptions, mesh: &Mesh) -> Box<dyn Rules> {
             },
         }),
         Scheme::Midpoint => Box::new(MidpointRules {
-            split: if mesh.is_triangle_mesh() { Split::Triangles } else { Split::Polygons },
+            split: if mesh.is_triangle_mesh() {
+                Split::Triangles
+            } else {
+                Split::Polygons
+            },
         }),
-        Scheme::Bilinear => Box::new(MidpointRules { split: Split::Polygons }),
+        Scheme::Bilinear => Box::new(MidpointRules {
+            split: Split::Polygons,
+        }),
         Scheme::CatmullClark => Box::new(CatmullClarkRules),
     }
 }
@@ -131,7 +137,8 @@ pub fn sharp_edges_by_angle(mesh: &Mesh, topo: &Topology, degrees: f64) -> Vec<u
         let fv = topo.face_vertices(f);
         let mut n = DVec3::ZERO;
         for i in 0..fv.len() {
-            n += mesh.positions[fv[i] as usize].cross(mesh.positions[fv[(i + 1) % fv.len()] as usize]);
+            n += mesh.positions[fv[i] as usize]
+                .cross(mesh.positions[fv[(i + 1) % fv.len()] as usize]);
         }
         n.normalize_or_zero()
     };
@@ -173,16 +180,37 @@ impl Refinement {
     ///   cannot take (Loop on quads: the error names them and suggests Catmull-Clark);
     /// - [`Error::InvalidArgument`] if the result would exceed [`MAX_FACES`] faces.
     pub fn build(mesh: &Mesh, opts: &SubdivideOptions, keep_stencils: bool) -> Result<Refinement> {
+        Self::build_with(mesh, opts, keep_stencils, true)
+    }
+
+    /// [`Refinement::build`], dropping each level's topology once refined unless
+    /// `keep_topologies` ([`Refinement::topologies`] is then empty). Without stencils, child
+    /// values are computed directly ([`stencil::level_apply`]), bit-identical to applying the
+    /// tables.
+    fn build_with(
+        mesh: &Mesh,
+        opts: &SubdivideOptions,
+        keep_stencils: bool,
+        keep_topologies: bool,
+    ) -> Result<Refinement> {
         mesh.check_indices()?;
         if opts.scheme == Scheme::Loop {
-            require_arity(mesh, 3, "loop", "triangles", "use catmull-clark (any polygons) or quad-tri (mixed quads and triangles)")?;
+            require_arity(
+                mesh,
+                3,
+                "loop",
+                "triangles",
+                "use catmull-clark or bilinear (any polygons)",
+            )?;
         }
         let rules = rules_for(opts, mesh);
         let split = rules.split();
         let corners = mesh.face_indices.len() as u64;
         let faces_out = match split {
             Split::Triangles => mesh.num_faces() as u64 * 4u64.saturating_pow(opts.levels),
-            Split::Polygons => corners.saturating_mul(4u64.saturating_pow(opts.levels.saturating_sub(1))),
+            Split::Polygons => {
+                corners.saturating_mul(4u64.saturating_pow(opts.levels.saturating_sub(1)))
+            }
         };
         if opts.levels > 0 && faces_out > MAX_FACES {
             return Err(Error::InvalidArgument(format!(
@@ -216,29 +244,75 @@ impl Refinement {
         let mut positions = mesh.positions.clone();
         let mut topologies = Vec::with_capacity(opts.levels as usize);
         let mut stencils = Vec::new();
-        let (mut face_offsets, mut face_vertices) = (topo.face_offsets.clone(), topo.face_vertices.clone());
+        let (mut face_offsets, mut face_vertices) = (Vec::new(), Vec::new());
         let (mut edge_tags, mut vertex_tags) = (mesh.edge_tags.clone(), mesh.vertex_tags.clone());
+        if opts.levels == 0 {
+            (face_offsets, face_vertices) = (topo.face_offsets.clone(), topo.face_vertices.clone());
+        }
+        /// What a level hands to the next: its child topology, or the finest level's faces.
+        enum Next {
+            Child(Box<Topology>),
+            Finest((Vec<u32>, Vec<u32>), (Vec<EdgeTag>, Vec<VertexTag>)),
+        }
         for level in 0..opts.levels {
-            let ctx = LevelContext { rules: rules.as_ref(), creasing: opts.creasing, positions: &positions };
-            let table = level_stencils(&topo, &ctx);
-            positions = table.apply(&positions);
-            if keep_stencils {
-                stencils.push(table);
-            }
-            if level + 1 < opts.levels {
-                let (mut child, halves) = refine::refine_topology(&topo, split, false);
-                child_sharpness(&topo, &mut child, &halves, opts.creasing);
-                topologies.push(std::mem::replace(&mut topo, child));
+            let ctx = LevelContext {
+                rules: rules.as_ref(),
+                creasing: opts.creasing,
+                positions: &positions,
+            };
+            let values = || {
+                if keep_stencils {
+                    let table = level_stencils(&topo, &ctx);
+                    (table.apply(&positions), Some(table))
+                } else {
+                    (level_apply(&topo, &ctx, &positions), None)
+                }
+            };
+            let child = || {
+                if level + 1 < opts.levels {
+                    let (mut child, halves) = refine::refine_topology(&topo, split, false);
+                    child_sharpness(&topo, &mut child, &halves, opts.creasing);
+                    Next::Child(Box::new(child))
+                } else {
+                    Next::Finest(
+                        refine::child_faces(&topo, split),
+                        finest_tags(&topo, opts.creasing),
+                    )
+                }
+            };
+            // The child values and the child topology depend only on the parent: overlap them,
+            // unless the (large) stencil tables are kept, to bound the peak memory.
+            let ((next_positions, table), next) = if keep_stencils {
+                let values = values();
+                (values, child())
             } else {
-                (face_offsets, face_vertices) = refine::child_faces(&topo, split);
-                (edge_tags, vertex_tags) = finest_tags(&topo, opts.creasing);
-                topologies.push(std::mem::take(&mut topo));
+                rayon::join(values, child)
+            };
+            positions = next_positions;
+            stencils.extend(table);
+            let parent = match next {
+                Next::Child(child) => std::mem::replace(&mut topo, *child),
+                Next::Finest(faces, tags) => {
+                    ((face_offsets, face_vertices), (edge_tags, vertex_tags)) = (faces, tags);
+                    std::mem::take(&mut topo)
+                }
+            };
+            if keep_topologies {
+                topologies.push(parent);
             }
         }
-        if opts.levels == 0 {
+        if opts.levels == 0 && keep_topologies {
             topologies.push(topo);
         }
-        Ok(Refinement { topologies, face_offsets, face_vertices, stencils, positions, edge_tags, vertex_tags })
+        Ok(Refinement {
+            topologies,
+            face_offsets,
+            face_vertices,
+            stencils,
+            positions,
+            edge_tags,
+            vertex_tags,
+        })
     }
 
     /// Re-evaluates the finest level from new control values (one per level-0 vertex) with
@@ -258,7 +332,9 @@ impl Refinement {
     pub fn evaluate_levels<T: Interpolate>(&self, control: &[T]) -> Result<Vec<Vec<T>>> {
         let levels = self.topologies.len();
         if self.stencils.len() != levels || self.stencils.is_empty() && levels > 0 {
-            return Err(Error::InvalidArgument("stencils were not kept: build the refinement with keep_stencils".into()));
+            return Err(Error::InvalidArgument(
+                "stencils were not kept: build the refinement with keep_stencils".into(),
+            ));
         }
         if let Some(t) = self.stencils.first() {
             if control.len() != t.num_sources as usize {
@@ -290,7 +366,12 @@ impl Refinement {
 
 /// Sets the child level's sharpness from the parent's: each edge's halves by the creasing
 /// rule at their end, corners decremented; new edges and vertices are smooth.
-fn child_sharpness(parent: &Topology, child: &mut Topology, halves: &[[u32; 2]], creasing: Creasing) {
+fn child_sharpness(
+    parent: &Topology,
+    child: &mut Topology,
+    halves: &[[u32; 2]],
+    creasing: Creasing,
+) {
     let mut incident = Vec::new();
     for (e, h) in halves.iter().enumerate() {
         let s = parent.edge_sharpness[e];
@@ -300,7 +381,12 @@ fn child_sharpness(parent: &Topology, child: &mut Topology, halves: &[[u32; 2]],
         for (end, &half) in h.iter().enumerate() {
             let w = parent.edge_vertices[e][end] as usize;
             incident.clear();
-            incident.extend(parent.vertex_edges(w).iter().map(|&x| parent.edge_sharpness[x as usize]));
+            incident.extend(
+                parent
+                    .vertex_edges(w)
+                    .iter()
+                    .map(|&x| parent.edge_sharpness[x as usize]),
+            );
             child.edge_sharpness[half as usize] = child_edge_sharpness(creasing, s, &incident);
         }
     }
@@ -322,17 +408,28 @@ fn finest_tags(parent: &Topology, creasing: Creasing) -> (Vec<EdgeTag>, Vec<Vert
         }
         for &w in &parent.edge_vertices[e] {
             incident.clear();
-            incident.extend(parent.vertex_edges(w as usize).iter().map(|&x| parent.edge_sharpness[x as usize]));
+            incident.extend(
+                parent
+                    .vertex_edges(w as usize)
+                    .iter()
+                    .map(|&x| parent.edge_sharpness[x as usize]),
+            );
             let c = child_edge_sharpness(creasing, s, &incident);
             if c > 0.0 {
-                edges.push(EdgeTag { vertices: [w, nv + e as u32], sharpness: c });
+                edges.push(EdgeTag {
+                    vertices: [w, nv + e as u32],
+                    sharpness: c,
+                });
             }
         }
     }
     let vertices = (0..nv)
         .filter_map(|v| {
             let s = decrement(parent.vertex_sharpness[v as usize]);
-            (s > 0.0).then_some(VertexTag { vertex: v, sharpness: s })
+            (s > 0.0).then_some(VertexTag {
+                vertex: v,
+                sharpness: s,
+            })
         })
         .collect();
     (edges, vertices)
@@ -345,8 +442,8 @@ fn finest_tags(parent: &Topology, creasing: Creasing) -> (Vec<EdgeTag>, Vec<Vert
 /// As [`Refinement::build`].
 pub fn subdivide(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Mesh> {
     let carry = mesh.colors.is_some() || mesh.uvs.is_some();
-    let r = Refinement::build(mesh, opts, carry)?;
-    let mut out = r.to_mesh();
+    let r = Refinement::build_with(mesh, opts, carry, carry)?;
+    let mut out = Mesh::new();
     if carry {
         if let Some(c) = &mesh.colors {
             out.colors = Some(r.evaluate(c)?);
@@ -355,7 +452,10 @@ pub fn subdivide(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Mesh> {
             out.uvs = Some(r.evaluate(t)?);
         }
     }
-    out.edge_tags = r.edge_tags.clone();
-    out.vertex_tags = r.vertex_tags.clone();
+    out.positions = r.positions;
+    out.face_offsets = r.face_offsets;
+    out.face_indices = r.face_vertices;
+    out.edge_tags = r.edge_tags;
+    out.vertex_tags = r.vertex_tags;
     Ok(out)
 }

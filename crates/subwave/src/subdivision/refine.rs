@@ -20,6 +20,8 @@
 //!   (so the children of quad `k` of a quad mesh are `4k..4k+3`). This is OpenSubdiv's order.
 //! - **Edges** of the child level: order of first appearance in the child face list.
 
+use rayon::prelude::*;
+
 use crate::topology::Topology;
 
 /// How a scheme splits faces.
@@ -54,6 +56,19 @@ pub fn child_vertex_count(parent: &Topology, split: Split) -> usize {
     }
 }
 
+/// Parent faces per parallel work item.
+const FACE_CHUNK: usize = 4096;
+
+/// Offsets `0, arity, 2 arity, ..., n arity` of `n` faces of one arity.
+fn uniform_offsets(n: usize, arity: u32) -> Vec<u32> {
+    let mut offsets = Vec::with_capacity(n + 1);
+    (0..n as u32 + 1)
+        .into_par_iter()
+        .map(|i| arity * i)
+        .collect_into_vec(&mut offsets);
+    offsets
+}
+
 /// Child faces only (no edges): enough for the last level of a refinement, whose topology
 /// nobody queries. Returns `(face_offsets, face_vertices)`.
 pub fn child_faces(parent: &Topology, split: Split) -> (Vec<u32>, Vec<u32>) {
@@ -62,31 +77,48 @@ pub fn child_faces(parent: &Topology, split: Split) -> (Vec<u32>, Vec<u32>) {
     let nf = parent.num_faces();
     match split {
         Split::Triangles => {
-            let mut fv = Vec::with_capacity(12 * nf);
-            for f in 0..nf {
-                let v = parent.face_vertices(f);
-                let e = parent.face_edges(f);
-                let (v3, v4, v5) = (nv + e[0], nv + e[1], nv + e[2]);
-                fv.extend_from_slice(&[v[0], v3, v5, v[1], v4, v3, v[2], v5, v4, v3, v4, v5]);
-            }
-            let offsets = (0..=(4 * nf) as u32).map(|i| 3 * i).collect();
-            (offsets, fv)
+            let mut fv = vec![0u32; 12 * nf];
+            fv.par_chunks_mut(12 * FACE_CHUNK)
+                .enumerate()
+                .for_each(|(c, out)| {
+                    for (k, o) in out.chunks_exact_mut(12).enumerate() {
+                        let f = c * FACE_CHUNK + k;
+                        let v = parent.face_vertices(f);
+                        let e = parent.face_edges(f);
+                        let (v3, v4, v5) = (nv + e[0], nv + e[1], nv + e[2]);
+                        o.copy_from_slice(&[v[0], v3, v5, v[1], v4, v3, v[2], v5, v4, v3, v4, v5]);
+                    }
+                });
+            (uniform_offsets(4 * nf, 3), fv)
         }
         Split::Polygons => {
             let nc = parent.face_vertices.len();
-            let mut fv = Vec::with_capacity(4 * nc);
-            for f in 0..nf {
-                let v = parent.face_vertices(f);
-                let e = parent.face_edges(f);
-                let c = nv + ne + f as u32;
-                let n = v.len();
-                for i in 0..n {
-                    let prev = if i == 0 { n - 1 } else { i - 1 };
-                    fv.extend_from_slice(&[v[i], nv + e[i], c, nv + e[prev]]);
-                }
+            let mut fv = vec![0u32; 4 * nc];
+            // Face f's children start at 4 · face_offsets[f]: split the output at face chunks.
+            let mut parts = Vec::with_capacity(nf.div_ceil(FACE_CHUNK));
+            let mut rest = fv.as_mut_slice();
+            for lo in (0..nf).step_by(FACE_CHUNK) {
+                let hi = (lo + FACE_CHUNK).min(nf);
+                let len = 4 * (parent.face_offsets[hi] - parent.face_offsets[lo]) as usize;
+                let (head, tail) = rest.split_at_mut(len);
+                parts.push((lo..hi, head));
+                rest = tail;
             }
-            let offsets = (0..=nc as u32).map(|i| 4 * i).collect();
-            (offsets, fv)
+            parts.into_par_iter().for_each(|(faces, out)| {
+                let mut k = 0;
+                for f in faces {
+                    let v = parent.face_vertices(f);
+                    let e = parent.face_edges(f);
+                    let c = nv + ne + f as u32;
+                    let n = v.len();
+                    for i in 0..n {
+                        let prev = if i == 0 { n - 1 } else { i - 1 };
+                        out[k..k + 4].copy_from_slice(&[v[i], nv + e[i], c, nv + e[prev]]);
+                        k += 4;
+                    }
+                }
+            });
+            (uniform_offsets(nc, 4), fv)
         }
     }
 }
@@ -136,7 +168,8 @@ pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
                 let h22 = half(&mut edge_vertices, e[2], v[2], [v[2], m[2]]);
                 let ic = new_edge(&mut edge_vertices, [m[2], m[1]]);
                 let h12 = half(&mut edge_vertices, e[1], v[2], [m[1], v[2]]);
-                face_edges[c..c + 12].copy_from_slice(&[h00, ia, h20, h11, ib, h01, h22, ic, h12, ib, ic, ia]);
+                face_edges[c..c + 12]
+                    .copy_from_slice(&[h00, ia, h20, h11, ib, h01, h22, ic, h12, ib, ic, ia]);
             }
         }
         Split::Polygons => {
@@ -185,10 +218,21 @@ pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
 }
 
 /// Builds the child level's full topology (without ring ordering unless `order_rings`).
-pub fn refine_topology(parent: &Topology, split: Split, order_rings: bool) -> (Topology, Vec<[u32; 2]>) {
+pub fn refine_topology(
+    parent: &Topology,
+    split: Split,
+    order_rings: bool,
+) -> (Topology, Vec<[u32; 2]>) {
     let nv = child_vertex_count(parent, split);
     let c = child_edges(parent, split);
-    let topo = Topology::from_edges(nv, c.face_offsets, c.face_vertices, c.face_edges, c.edge_vertices, order_rings);
+    let topo = Topology::from_edges(
+        nv,
+        c.face_offsets,
+        c.face_vertices,
+        c.face_edges,
+        c.edge_vertices,
+        order_rings,
+    );
     (topo, c.edge_halves)
 }
 
@@ -250,6 +294,9 @@ mod tests {
         let v = parent.face_vertices(0);
         let e = parent.face_edges(0);
         let (v3, v4, v5) = (4 + e[0], 4 + e[1], 4 + e[2]);
-        assert_eq!(&fv[..12], &[v[0], v3, v5, v[1], v4, v3, v[2], v5, v4, v3, v4, v5]);
+        assert_eq!(
+            &fv[..12],
+            &[v[0], v3, v5, v[1], v4, v3, v[2], v5, v4, v3, v4, v5]
+        );
     }
 }

@@ -104,7 +104,12 @@ pub fn child_edge_sharpness(creasing: Creasing, s: f64, incident: &[f64]) -> f64
 /// The weight of the parent rule when a vertex's rule changes between levels
 /// (`Sdc::Crease::ComputeFractionalWeightAtVertex`): the mean parent sharpness of the features
 /// that become smooth, clamped to 1.
-pub fn fractional_weight(parent_vertex: f64, child_vertex: f64, parent_edges: &[f64], child_edges: &[f64]) -> f64 {
+pub fn fractional_weight(
+    parent_vertex: f64,
+    child_vertex: f64,
+    parent_edges: &[f64],
+    child_edges: &[f64],
+) -> f64 {
     let (mut sum, mut count) = (0.0, 0usize);
     if parent_vertex > 0.0 && child_vertex <= 0.0 {
         sum += parent_vertex;
@@ -262,7 +267,10 @@ impl EdgeMask {
 
     /// `self = a·self + b·other`.
     pub fn blend(&mut self, a: f64, other: &EdgeMask, b: f64) {
-        self.ends = [a * self.ends[0] + b * other.ends[0], a * self.ends[1] + b * other.ends[1]];
+        self.ends = [
+            a * self.ends[0] + b * other.ends[0],
+            a * self.ends[1] + b * other.ends[1],
+        ];
         for (x, y) in self.faces.iter_mut().zip(&other.faces) {
             *x = a * *x + b * *y;
         }
@@ -308,7 +316,12 @@ pub fn vertex_mask_with_transition(
     if child == parent {
         return;
     }
-    let w = fractional_weight(n.vertex_sharpness, n.child_vertex_sharpness, n.edge_sharpness, n.child_edge_sharpness);
+    let w = fractional_weight(
+        n.vertex_sharpness,
+        n.child_vertex_sharpness,
+        n.edge_sharpness,
+        n.child_edge_sharpness,
+    );
     // The child rule's mask uses the child's sharp edges (for a crease rule).
     let child_n = VertexNeighborhood {
         edge_sharpness: n.child_edge_sharpness,
@@ -358,8 +371,14 @@ mod tests {
         assert_eq!(decrement(0.5), 0.0);
         assert_eq!(decrement(10.0), 10.0);
         // Chaikin: 3/4 of 2 + 1/4 of 4, minus 1.
-        assert_eq!(child_edge_sharpness(Creasing::Chaikin, 2.0, &[2.0, 4.0, 0.0]), 1.5);
-        assert_eq!(child_edge_sharpness(Creasing::Uniform, 2.0, &[2.0, 4.0, 0.0]), 1.0);
+        assert_eq!(
+            child_edge_sharpness(Creasing::Chaikin, 2.0, &[2.0, 4.0, 0.0]),
+            1.5
+        );
+        assert_eq!(
+            child_edge_sharpness(Creasing::Uniform, 2.0, &[2.0, 4.0, 0.0]),
+            1.0
+        );
         assert_eq!(fractional_weight(0.0, 0.0, &[0.5, 0.0], &[0.0, 0.0]), 0.5);
         assert_eq!(fractional_weight(0.0, 0.0, &[3.0, 1.0], &[2.0, 0.0]), 1.0);
     }

@@ -1,0 +1,263 @@
+//! `subwave demo`: the main job on the embedded default input.
+//!
+//! The demo is a list of [`STEPS`] run in order over a shared [`Demo`] state. Each step does
+//! one thing (generate, validate, write meshes, ...), may add a section to `report.json`
+//! ([`Demo::sections`]) and files to the output folder ([`Demo::write_file`]), and returns a
+//! one-line summary. To extend the demo (subdivision, wavelets, coding, ...), write a step
+//! function and insert it in [`STEPS`] before `write report`.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use serde_json::{json, Map, Value};
+use subwave::io::{write_mesh, Format};
+use subwave::validate::{self, MeshReport};
+use subwave::{Error, Mesh, Topology};
+
+use crate::print::{self, count};
+use crate::DemoArgs;
+
+/// Base name of the mesh files the demo writes.
+const MESH_NAME: &str = "five-blobs";
+
+/// One step of the demo.
+struct Step {
+    /// Shown in the progress lines.
+    name: &'static str,
+    /// Does the work and returns a one-line summary.
+    run: fn(&mut Demo) -> Result<String>,
+}
+
+/// The steps, in order.
+const STEPS: &[Step] = &[
+    Step {
+        name: "generate",
+        run: generate,
+    },
+    Step {
+        name: "validate",
+        run: validate_mesh,
+    },
+    Step {
+        name: "write meshes",
+        run: write_meshes,
+    },
+    Step {
+        name: "write report",
+        run: write_report,
+    },
+];
+
+/// A file the demo wrote.
+struct Written {
+    path: PathBuf,
+    bytes: u64,
+    what: String,
+}
+
+/// The state the steps share.
+struct Demo {
+    out: PathBuf,
+    levels: u32,
+    mesh: Option<Mesh>,
+    report: Option<MeshReport>,
+    /// Top-level sections of `report.json` (written with sorted keys).
+    sections: Map<String, Value>,
+    files: Vec<Written>,
+}
+
+impl Demo {
+    fn mesh(&self) -> Result<&Mesh> {
+        self.mesh
+            .as_ref()
+            .context("internal: the demo has no mesh yet (step order)")
+    }
+
+    /// Records a file written into the output folder.
+    fn record(&mut self, path: PathBuf, what: impl Into<String>) -> Result<()> {
+        let bytes = std::fs::metadata(&path)
+            .with_context(|| {
+                format!(
+                    "{}: cannot read the size of the file just written",
+                    path.display()
+                )
+            })?
+            .len();
+        self.files.push(Written {
+            path,
+            bytes,
+            what: what.into(),
+        });
+        Ok(())
+    }
+
+    /// Writes `contents` to `name` in the output folder and records it.
+    fn write_file(&mut self, name: &str, contents: &[u8], what: &str) -> Result<()> {
+        let path = self.out.join(name);
+        std::fs::write(&path, contents).map_err(|source| Error::Io {
+            path: print::path(&path),
+            source,
+        })?;
+        self.record(path, what)
+    }
+}
+
+fn generate(d: &mut Demo) -> Result<String> {
+    let mesh = subwave::generate::five_blobs(d.levels);
+    let line = format!(
+        "five blobs (Bertram §5.1), {} level(s): {} vertices, {} triangles",
+        d.levels,
+        count(mesh.num_vertices()),
+        count(mesh.num_faces())
+    );
+    d.sections.insert(
+        "input".to_string(),
+        json!({
+            "name": MESH_NAME,
+            "generator": "subwave::generate::five_blobs",
+            "levels": d.levels,
+        }),
+    );
+    d.mesh = Some(mesh);
+    Ok(line)
+}
+
+fn validate_mesh(d: &mut Demo) -> Result<String> {
+    let mesh = d.mesh()?;
+    mesh.check_indices().map_err(|source| Error::InvalidMesh {
+        path: MESH_NAME.to_string(),
+        source,
+    })?;
+    let topo = Topology::build(mesh);
+    let rep = validate::report(mesh, &topo);
+    validate::require_manifold(&topo).map_err(|source| Error::InvalidMesh {
+        path: MESH_NAME.to_string(),
+        source,
+    })?;
+    let line = format!("2-manifold; {}", print::report_line(&rep));
+    d.sections
+        .insert("mesh".to_string(), serde_json::to_value(&rep)?);
+    d.report = Some(rep);
+    Ok(line)
+}
+
+fn write_meshes(d: &mut Demo) -> Result<String> {
+    let mut names = Vec::new();
+    for format in [Format::Obj, Format::Ply, Format::Glb] {
+        let name = format!("{MESH_NAME}.{}", format.name());
+        let path = d.out.join(&name);
+        write_mesh(d.mesh()?, &path, Some(format))?;
+        d.record(path, format!("the mesh, {}", describe(format)))?;
+        names.push(name);
+    }
+    Ok(names.join(", "))
+}
+
+fn describe(format: Format) -> &'static str {
+    match format {
+        Format::Obj => "Wavefront OBJ",
+        Format::Off => "OFF",
+        Format::Ply => "binary PLY",
+        Format::Stl => "binary STL",
+        Format::Glb => "binary glTF (opens in any glTF viewer)",
+    }
+}
+
+fn write_report(d: &mut Demo) -> Result<String> {
+    let mut root = Map::new();
+    root.insert(
+        "subwave_version".to_string(),
+        json!(env!("CARGO_PKG_VERSION")),
+    );
+    root.extend(std::mem::take(&mut d.sections));
+    root.insert(
+        "outputs".to_string(),
+        Value::Array(
+            d.files
+                .iter()
+                .map(|f| {
+                    json!({
+                        "file": f.path.file_name().map(|n| n.to_string_lossy().into_owned()),
+                        "bytes": f.bytes,
+                    })
+                })
+                .collect(),
+        ),
+    );
+    let mut text = serde_json::to_vec_pretty(&Value::Object(root))?;
+    text.push(b'\n');
+    d.write_file(
+        "report.json",
+        &text,
+        "the mesh report and the list of outputs (JSON)",
+    )?;
+    Ok("report.json".to_string())
+}
+
+pub fn run(args: &DemoArgs) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create the output folder {}", args.out.display()))?;
+    let mut demo = Demo {
+        out: args.out.clone(),
+        levels: args.levels,
+        mesh: None,
+        report: None,
+        sections: Map::new(),
+        files: Vec::new(),
+    };
+    writeln!(out, "subwave demo -> {}", display_dir(&args.out))?;
+    let start = Instant::now();
+    let mut timings: Vec<(&str, Duration)> = Vec::new();
+    for (i, step) in STEPS.iter().enumerate() {
+        let t = Instant::now();
+        let line = (step.run)(&mut demo).with_context(|| format!("demo step `{}`", step.name))?;
+        let took = t.elapsed();
+        timings.push((step.name, took));
+        writeln!(
+            out,
+            "[{}/{}] {:<12} {} ({})",
+            i + 1,
+            STEPS.len(),
+            step.name,
+            line,
+            print::duration(took)
+        )?;
+        out.flush()?;
+    }
+    let total = start.elapsed();
+
+    if let Some(rep) = &demo.report {
+        writeln!(out, "\nmesh report")?;
+        print::report_table(rep).write(&mut out, "  ")?;
+    }
+    writeln!(out, "\nfiles")?;
+    let mut files = print::Table::new();
+    for f in &demo.files {
+        files.row(
+            print::path(&f.path),
+            format!("{:>10}  {}", print::size(f.bytes), f.what),
+        );
+    }
+    files.write(&mut out, "  ")?;
+    writeln!(out, "\ntimings")?;
+    let mut times = print::Table::new();
+    for (name, took) in &timings {
+        times.row(*name, format!("{:>10}", print::duration(*took)));
+    }
+    times.row("total", format!("{:>10}", print::duration(total)));
+    times.write(&mut out, "  ")?;
+    out.flush()?;
+    Ok(())
+}
+
+fn display_dir(p: &Path) -> String {
+    let s = print::path(p);
+    if s.ends_with(std::path::MAIN_SEPARATOR) {
+        s
+    } else {
+        format!("{s}{}", std::path::MAIN_SEPARATOR)
+    }
+}

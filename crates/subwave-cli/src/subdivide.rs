@@ -1,0 +1,106 @@
+//! `subwave subdivide`: plain subdivision of a mesh file.
+
+use std::time::Instant;
+
+use anyhow::Result;
+use subwave::subdivision::loop_scheme::LoopWeights;
+use subwave::subdivision::rules::Creasing;
+use subwave::subdivision::{subdivide, BoundaryMode, Scheme, SubdivideOptions};
+
+use crate::SubdivideArgs;
+
+/// Scheme names on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SchemeArg {
+    /// Loop (triangles), piecewise smooth with crease/dart/corner tags.
+    Loop,
+    /// Linear 1-to-4 on triangle meshes, bilinear on polygon meshes.
+    Midpoint,
+    /// Catmull-Clark (any polygons), sharp and semi-sharp creases.
+    CatmullClark,
+    /// Bilinear (any polygons, split into quads).
+    Bilinear,
+}
+
+/// Boundary treatment on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BoundaryArg {
+    /// Boundaries are creases (Maret §3.5) with Biermann et al.'s Loop edge rules.
+    Crease,
+    /// OpenSubdiv's "edge only" boundary interpolation.
+    Opensubdiv,
+    /// OpenSubdiv's "edge and corner": boundary vertices of a single face are corners.
+    OpensubdivCorners,
+}
+
+/// Creasing method on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum CreasingArg {
+    /// Semi-sharp sharpness decreases by one per level.
+    Uniform,
+    /// Chaikin's rule (OpenSubdiv's CREASE_CHAIKIN).
+    Chaikin,
+}
+
+/// Loop β on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LoopWeightsArg {
+    /// Loop's β (Maret eq. 3.7).
+    Loop,
+    /// Warren's β (Maret eq. 3.8).
+    Warren,
+}
+
+/// Runs `subwave subdivide`.
+pub fn run(args: &SubdivideArgs) -> Result<()> {
+    let mut mesh = subwave::io::read_mesh(&args.mesh, args.format)?;
+    let unreferenced = mesh.referenced().iter().filter(|&&u| !u).count();
+    if unreferenced > 0 {
+        tracing::warn!(
+            "{}: dropping {unreferenced} vertices that no face uses",
+            args.mesh.display()
+        );
+        mesh.remove_unreferenced();
+    }
+    let opts = SubdivideOptions {
+        scheme: match args.scheme {
+            SchemeArg::Loop => Scheme::Loop,
+            SchemeArg::Midpoint => Scheme::Midpoint,
+            SchemeArg::CatmullClark => Scheme::CatmullClark,
+            SchemeArg::Bilinear => Scheme::Bilinear,
+        },
+        levels: args.levels,
+        boundary: match args.boundary {
+            BoundaryArg::Crease => BoundaryMode::Crease,
+            BoundaryArg::Opensubdiv => BoundaryMode::OpenSubdiv,
+            BoundaryArg::OpensubdivCorners => BoundaryMode::OpenSubdivCorners,
+        },
+        creasing: match args.creasing {
+            CreasingArg::Uniform => Creasing::Uniform,
+            CreasingArg::Chaikin => Creasing::Chaikin,
+        },
+        loop_weights: match args.loop_weights {
+            LoopWeightsArg::Loop => LoopWeights::Loop,
+            LoopWeightsArg::Warren => LoopWeights::Warren,
+        },
+        sharp_angle: args.sharp_angle,
+    };
+    let t = Instant::now();
+    let out =
+        subdivide(&mesh, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", args.mesh.display()))?;
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    subwave::io::write_mesh(&out, &args.output, args.to)?;
+    if args.output.as_os_str() != "-" {
+        println!(
+            "{} levels of {}: {} vertices, {} faces -> {} vertices, {} faces in {ms:.1} ms; wrote {}",
+            args.levels,
+            opts.scheme.name(),
+            mesh.num_vertices(),
+            mesh.num_faces(),
+            out.num_vertices(),
+            out.num_faces(),
+            args.output.display()
+        );
+    }
+    Ok(())
+}
