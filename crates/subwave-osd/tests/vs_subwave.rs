@@ -55,8 +55,12 @@ fn check(
         "{name} {o:?}: faces"
     );
     let d = max_vertex_distance(&ours, &theirs);
+    eprintln!(
+        "{name} {o:?}: max difference {:.3e} of the diagonal",
+        d / mesh.diagonal()
+    );
     assert!(
-        d <= 1e-5 * mesh.diagonal(),
+        d <= 1e-6 * mesh.diagonal(),
         "{name} {o:?}: positions differ by {d}"
     );
 }
@@ -245,7 +249,14 @@ fn loop_matches_opensubdiv() {
 
 /// The corpus (when `../shared/data/meshes` exists): every manifold mesh, Catmull-Clark on all
 /// and Loop on triangle meshes, 2 levels, "edge only" boundaries, with infinitely sharp creases
-/// on edges sharper than 40° and a semi-sharp crease on every 7th remaining edge.
+/// on edges sharper than 40° and a semi-sharp crease on every 7th remaining edge, with uniform
+/// and Chaikin creasing.
+///
+/// The semi-sharp values (0.37 + 0.61 k) avoid ties: with values such as 2.9 and 0.5, Chaikin's
+/// rule gives a child sharpness of exactly 0 in exact arithmetic after two levels
+/// (`0.75 · 1.3 + 0.25 · 0.1 - 1`), which rounds to `+1.2e-7` in OpenSubdiv's `f32` and to
+/// `-1.1e-16` in our `f64`, so the two pick different vertex rules for a reason that is not a
+/// difference of rules.
 #[test]
 fn corpus_matches_opensubdiv() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/meshes");
@@ -277,30 +288,30 @@ fn corpus_matches_opensubdiv() {
             if !sharp.contains(&(e as u32)) {
                 mesh.edge_tags.push(EdgeTag {
                     vertices: topo.edge_vertices[e],
-                    sharpness: 0.5 + (e % 5) as f64 * 0.6,
+                    sharpness: 0.37 + (e % 5) as f64 * 0.61,
                 });
             }
         }
         let levels = if name == "stanford-bunny" { 1 } else { 2 };
-        check(
-            name,
-            &mesh,
-            OsdScheme::CatmullClark,
-            OsdBoundary::EdgeOnly,
-            OsdCreasing::Uniform,
-            levels,
-        );
-        // Chaikin creasing with mixed infinite and semi-sharp creases differs from OpenSubdiv
-        // on fandisk (0.0093 at level 2): a known open bug, see the issue note.
-        if mesh.is_triangle_mesh() {
+        for creasing in [OsdCreasing::Uniform, OsdCreasing::Chaikin] {
             check(
                 name,
                 &mesh,
-                OsdScheme::Loop,
+                OsdScheme::CatmullClark,
                 OsdBoundary::EdgeOnly,
-                OsdCreasing::Uniform,
+                creasing,
                 levels,
             );
+            if mesh.is_triangle_mesh() {
+                check(
+                    name,
+                    &mesh,
+                    OsdScheme::Loop,
+                    OsdBoundary::EdgeOnly,
+                    creasing,
+                    levels,
+                );
+            }
         }
         checked += 1;
     }

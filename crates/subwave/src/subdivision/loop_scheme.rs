@@ -208,6 +208,7 @@ mod tests {
             num_faces: 2,
             face_arity: 3,
             ends: [sector(3), None],
+            child_sharpness: [0.0; 2],
         };
         r.edge_mask(&n, &mut m, &mut s);
         assert!((m.ends[0] - 0.375).abs() < 1e-15 && (m.ends[1] - 0.375).abs() < 1e-15);
@@ -222,6 +223,7 @@ mod tests {
         // Crease edges: the midpoint.
         let n = EdgeNeighborhood {
             sharpness: 10.0,
+            child_sharpness: [10.0; 2],
             ..n
         };
         r.edge_mask(&n, &mut m, &mut s);
@@ -230,9 +232,27 @@ mod tests {
         let n = EdgeNeighborhood {
             sharpness: 0.25,
             ends: [None, None],
+            child_sharpness: [0.0; 2],
             ..n
         };
         r.edge_mask(&n, &mut m, &mut s);
         assert!((m.ends[0] - (0.25 * 0.5 + 0.75 * 0.375)).abs() < 1e-15);
+        // Chaikin: a 0.8 edge whose halves stay sharp is a full crease (OpenSubdiv's rule)...
+        let n = EdgeNeighborhood {
+            sharpness: 0.8,
+            child_sharpness: [0.35, 0.1],
+            ..n
+        };
+        r.edge_mask(&n, &mut m, &mut s);
+        assert_eq!(m.ends, [0.5, 0.5]);
+        // ... and a 1.2 edge with one half decayed blends by 1.2, unclamped.
+        let n = EdgeNeighborhood {
+            sharpness: 1.2,
+            child_sharpness: [0.0, 0.1],
+            ..n
+        };
+        r.edge_mask(&n, &mut m, &mut s);
+        assert!((m.ends[0] - (1.2 * 0.5 - 0.2 * 0.375)).abs() < 1e-15);
+        assert!((m.sum() - 1.0).abs() < 1e-14);
     }
 }

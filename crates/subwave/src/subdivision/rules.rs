@@ -185,6 +185,9 @@ pub struct EdgeNeighborhood {
     pub face_arity: usize,
     /// The sector of each end (for the rules of Biermann et al.; `None` when not computed).
     pub ends: [Option<Sector>; 2],
+    /// Sharpness of the edge's two child halves at the next level (at `ends[0]`, `ends[1]`),
+    /// by the creasing rule; both equal `sharpness` when the edge is smooth or infinitely sharp.
+    pub child_sharpness: [f64; 2],
 }
 
 /// A vertex-point mask in local terms (see the module documentation).
@@ -332,8 +335,15 @@ pub fn vertex_mask_with_transition(
     mask.blend(w, scratch, 1.0 - w);
 }
 
-/// Applies OpenSubdiv's semi-sharp edge rule: sharpness `>= 1` gives the crease mask, a
-/// fraction `s` blends `s` of it with `1 - s` of the smooth mask from `smooth`.
+/// Applies OpenSubdiv's semi-sharp edge rule (`Sdc::Scheme::ComputeEdgeVertexMask` with the
+/// child rule known, as `Far::PrimvarRefiner` calls it): a sharp edge whose two child halves
+/// stay sharp gives the crease mask; otherwise (the child vertex becomes a dart or smooth) the
+/// smooth mask from `smooth` is blended with the crease mask by the parent sharpness `s`:
+/// `s · crease + (1 - s) · smooth`.
+///
+/// With uniform creasing both halves stay sharp exactly when `s > 1`, so the blend weight is
+/// at most 1. With Chaikin creasing a half can decay to zero while `s` lies in `(1, 4/3)`;
+/// OpenSubdiv then uses `s` unclamped (a slight extrapolation), and so do we, to reproduce it.
 pub fn edge_mask_with_sharpness(
     n: &EdgeNeighborhood,
     mask: &mut EdgeMask,
@@ -341,7 +351,7 @@ pub fn edge_mask_with_sharpness(
     smooth: impl Fn(&EdgeNeighborhood, &mut EdgeMask),
 ) {
     let s = n.sharpness;
-    if s >= 1.0 {
+    if s > 0.0 && n.child_sharpness[0] > 0.0 && n.child_sharpness[1] > 0.0 {
         mask.set_crease(n.num_faces);
         return;
     }

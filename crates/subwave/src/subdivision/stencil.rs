@@ -299,6 +299,7 @@ impl MaskCache {
                     num_faces: 2,
                     face_arity: a,
                     ends: [None, None],
+                    child_sharpness: [0.0; 2],
                 };
                 let mut m = EdgeMask::default();
                 rules.edge_mask(&n, &mut m, &mut es);
@@ -454,11 +455,25 @@ impl<'a> Level<'a> {
                 } else {
                     [None, None]
                 };
+                let child_sharpness = if sharpness > 0.0 && self.ctx.creasing == Creasing::Chaikin {
+                    [a, b].map(|w| {
+                        s.sharp.clear();
+                        s.sharp.extend(
+                            topo.vertex_edges(w as usize)
+                                .iter()
+                                .map(|&x| topo.edge_sharpness[x as usize]),
+                        );
+                        child_edge_sharpness(self.ctx.creasing, sharpness, &s.sharp)
+                    })
+                } else {
+                    [decrement(sharpness); 2]
+                };
                 let n = EdgeNeighborhood {
                     sharpness,
                     num_faces: faces.len(),
                     face_arity,
                     ends,
+                    child_sharpness,
                 };
                 self.ctx.rules.edge_mask(&n, &mut s.em, &mut s.es);
                 &s.em
