@@ -10,6 +10,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod bench;
 mod convert;
 mod demo;
 mod info;
@@ -42,6 +43,51 @@ enum Command {
     /// Subdivide a mesh: Loop, midpoint, Catmull-Clark or bilinear, with crease/dart/corner tags
     /// from the file's `t crease` / `t corner` lines and from --sharp-angle.
     Subdivide(SubdivideArgs),
+    /// Benchmarks without file output (medians of several runs).
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+/// What `subwave bench` measures.
+#[derive(Debug, Subcommand)]
+enum BenchCommand {
+    /// Plain subdivision: topology, positions, total, cached re-evaluation, peak memory.
+    Subdivide(BenchSubdivideArgs),
+}
+
+/// Arguments of `subwave bench subdivide`.
+#[derive(Debug, clap::Args)]
+pub struct BenchSubdivideArgs {
+    /// The input mesh (unreferenced vertices are dropped).
+    #[arg(value_name = "MESH")]
+    pub mesh: PathBuf,
+    /// The input format, if the extension does not tell it.
+    #[arg(short, long, value_name = "F", value_parser = parse_format)]
+    pub format: Option<Format>,
+    /// The scheme.
+    #[arg(long, value_enum, default_value = "loop")]
+    pub scheme: subdivide::SchemeArg,
+    /// Number of levels.
+    #[arg(long, value_name = "N", default_value_t = 3,
+          value_parser = clap::value_parser!(u32).range(0..=12))]
+    pub levels: u32,
+    /// Edges whose dihedral angle exceeds DEG degrees become infinitely sharp creases.
+    #[arg(long, value_name = "DEG")]
+    pub sharp_angle: Option<f64>,
+    /// Boundary treatment (OpenSubdiv's "edge only" by default, to compare with it).
+    #[arg(long, value_enum, default_value = "opensubdiv")]
+    pub boundary: subdivide::BoundaryArg,
+    /// How semi-sharp creases relax.
+    #[arg(long, value_enum, default_value = "uniform")]
+    pub creasing: subdivide::CreasingArg,
+    /// Runs per median.
+    #[arg(long, value_name = "K", default_value_t = 5,
+          value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub runs: u32,
+    /// Print JSON (keys topology_ms, positions_ms, total_ms, reevaluate_ms, peak_rss_mb,
+    /// vertices, faces, ...).
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of `subwave subdivide`.
@@ -189,6 +235,7 @@ fn main() -> ExitCode {
         Command::Convert(args) => convert::run(&args),
         Command::Demo(args) => demo::run(&args),
         Command::Subdivide(args) => subdivide::run(&args),
+        Command::Bench(BenchCommand::Subdivide(args)) => bench::subdivide(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

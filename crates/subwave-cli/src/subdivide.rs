@@ -1,5 +1,6 @@
 //! `subwave subdivide`: plain subdivision of a mesh file.
 
+use std::io::Write;
 use std::time::Instant;
 
 use anyhow::Result;
@@ -31,6 +32,9 @@ pub enum BoundaryArg {
     Opensubdiv,
     /// OpenSubdiv's "edge and corner": boundary vertices of a single face are corners.
     OpensubdivCorners,
+    /// OpenSubdiv's "none": Loop and Catmull-Clark drop the faces touching an untagged
+    /// boundary (they only support their neighbours); linear schemes as "opensubdiv".
+    None,
 }
 
 /// Creasing method on the command line.
@@ -51,6 +55,34 @@ pub enum LoopWeightsArg {
     Warren,
 }
 
+/// The library's scheme of a command-line name.
+pub fn scheme(arg: SchemeArg) -> Scheme {
+    match arg {
+        SchemeArg::Loop => Scheme::Loop,
+        SchemeArg::Midpoint => Scheme::Midpoint,
+        SchemeArg::CatmullClark => Scheme::CatmullClark,
+        SchemeArg::Bilinear => Scheme::Bilinear,
+    }
+}
+
+/// The library's boundary mode of a command-line name.
+pub fn boundary_mode(arg: BoundaryArg) -> BoundaryMode {
+    match arg {
+        BoundaryArg::Crease => BoundaryMode::Crease,
+        BoundaryArg::Opensubdiv => BoundaryMode::OpenSubdiv,
+        BoundaryArg::OpensubdivCorners => BoundaryMode::OpenSubdivCorners,
+        BoundaryArg::None => BoundaryMode::None,
+    }
+}
+
+/// The library's creasing method of a command-line name.
+pub fn creasing(arg: CreasingArg) -> Creasing {
+    match arg {
+        CreasingArg::Uniform => Creasing::Uniform,
+        CreasingArg::Chaikin => Creasing::Chaikin,
+    }
+}
+
 /// Runs `subwave subdivide`.
 pub fn run(args: &SubdivideArgs) -> Result<()> {
     let mut mesh = subwave::io::read_mesh(&args.mesh, args.format)?;
@@ -63,22 +95,10 @@ pub fn run(args: &SubdivideArgs) -> Result<()> {
         mesh.remove_unreferenced();
     }
     let opts = SubdivideOptions {
-        scheme: match args.scheme {
-            SchemeArg::Loop => Scheme::Loop,
-            SchemeArg::Midpoint => Scheme::Midpoint,
-            SchemeArg::CatmullClark => Scheme::CatmullClark,
-            SchemeArg::Bilinear => Scheme::Bilinear,
-        },
+        scheme: scheme(args.scheme),
         levels: args.levels,
-        boundary: match args.boundary {
-            BoundaryArg::Crease => BoundaryMode::Crease,
-            BoundaryArg::Opensubdiv => BoundaryMode::OpenSubdiv,
-            BoundaryArg::OpensubdivCorners => BoundaryMode::OpenSubdivCorners,
-        },
-        creasing: match args.creasing {
-            CreasingArg::Uniform => Creasing::Uniform,
-            CreasingArg::Chaikin => Creasing::Chaikin,
-        },
+        boundary: boundary_mode(args.boundary),
+        creasing: creasing(args.creasing),
         loop_weights: match args.loop_weights {
             LoopWeightsArg::Loop => LoopWeights::Loop,
             LoopWeightsArg::Warren => LoopWeights::Warren,
@@ -91,7 +111,8 @@ pub fn run(args: &SubdivideArgs) -> Result<()> {
     let ms = t.elapsed().as_secs_f64() * 1e3;
     subwave::io::write_mesh(&out, &args.output, args.to)?;
     if args.output.as_os_str() != "-" {
-        println!(
+        writeln!(
+            std::io::stdout(),
             "{} levels of {}: {} vertices, {} faces -> {} vertices, {} faces in {ms:.1} ms; wrote {}",
             args.levels,
             opts.scheme.name(),
@@ -100,7 +121,7 @@ pub fn run(args: &SubdivideArgs) -> Result<()> {
             out.num_vertices(),
             out.num_faces(),
             args.output.display()
-        );
+        )?;
     }
     Ok(())
 }

@@ -675,3 +675,105 @@ fn demo_into_a_file_fails_cleanly() {
     let e = fails(&["demo", "--out", &f, "--levels", "0"]);
     assert!(e.contains("not-a-folder"), "{e}");
 }
+
+/// Writes `mesh` as `name` into `dir` and returns the path as a string.
+fn put(dir: &Path, name: &str, mesh: &Mesh) -> String {
+    let path = dir.join(name);
+    write_mesh(mesh, &path, None).expect("write a test mesh");
+    path.to_string_lossy().into_owned()
+}
+
+#[test]
+fn subdivide_writes_the_refined_mesh() {
+    let dir = tmp();
+    let input = put(dir.path(), "ico.obj", &generate::icosphere(1));
+    let out = dir.path().join("out.obj");
+    let o = out.to_string_lossy().into_owned();
+    let text = ok(&[
+        "subdivide",
+        &input,
+        "-o",
+        &o,
+        "--scheme",
+        "loop",
+        "--levels",
+        "2",
+    ]);
+    assert!(text.contains("2 levels of loop"), "{text}");
+    let m = subwave::io::read_mesh(&out, None).unwrap();
+    // 80 faces -> 1280; V = 42 + 120 + 480 = 642.
+    assert_eq!((m.num_vertices(), m.num_faces()), (642, 1280));
+}
+
+#[test]
+fn subdivide_rejects_what_the_scheme_cannot_take() {
+    let dir = tmp();
+    let cube = put(dir.path(), "cube.obj", &generate::cube());
+    let o = dir.path().join("o.obj").to_string_lossy().into_owned();
+    let err = fails(&["subdivide", &cube, "-o", &o, "--scheme", "loop"]);
+    assert!(
+        err.contains("face") && err.contains("catmull-clark"),
+        "{err}"
+    );
+    let fin = put(dir.path(), "fin.obj", &generate::fin());
+    let err = fails(&["subdivide", &fin, "-o", &o, "--scheme", "catmull-clark"]);
+    assert!(err.contains("edge"), "{err}");
+}
+
+#[test]
+fn subdivide_boundary_none_drops_the_boundary_ring() {
+    let dir = tmp();
+    let grid = put(dir.path(), "grid.obj", &generate::grid(5, 5, false));
+    let out = dir.path().join("none.obj");
+    let o = out.to_string_lossy().into_owned();
+    ok(&[
+        "subdivide",
+        &grid,
+        "-o",
+        &o,
+        "--scheme",
+        "catmull-clark",
+        "--levels",
+        "2",
+        "--boundary",
+        "none",
+    ]);
+    let m = subwave::io::read_mesh(&out, None).unwrap();
+    assert_eq!(m.num_faces(), 9 * 16);
+}
+
+#[test]
+fn bench_subdivide_prints_the_documented_json() {
+    let dir = tmp();
+    let input = put(
+        dir.path(),
+        "torus.obj",
+        &generate::torus(1.0, 0.4, 8, 6, true),
+    );
+    let text = ok(&[
+        "bench",
+        "subdivide",
+        &input,
+        "--levels",
+        "2",
+        "--runs",
+        "1",
+        "--json",
+    ]);
+    let v: Value = serde_json::from_str(&text).expect("JSON");
+    for key in [
+        "topology_ms",
+        "positions_ms",
+        "total_ms",
+        "reevaluate_ms",
+        "peak_rss_mb",
+        "vertices",
+        "faces",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key} in {text}");
+    }
+    // 96 triangles, 2 Loop levels.
+    assert_eq!(v["faces"], 96 * 16);
+    let text = ok(&["bench", "subdivide", &input, "--levels", "1", "--runs", "1"]);
+    assert!(text.contains("re-evaluation"), "{text}");
+}

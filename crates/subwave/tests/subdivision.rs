@@ -349,3 +349,63 @@ proptest! {
         }
     }
 }
+
+/// `BoundaryMode::None` (OpenSubdiv's `VTX_BOUNDARY_NONE`): closed meshes are unchanged; on a
+/// grid the faces touching the boundary become holes, and what remains is exactly the
+/// "edge only" surface over the interior faces.
+#[test]
+fn boundary_none_drops_boundary_faces() {
+    for scheme in [Scheme::Loop, Scheme::CatmullClark] {
+        let closed = generate::icosphere(1);
+        let o = SubdivideOptions {
+            scheme,
+            levels: 2,
+            boundary: BoundaryMode::None,
+            ..Default::default()
+        };
+        let edge_only = SubdivideOptions {
+            boundary: BoundaryMode::OpenSubdiv,
+            ..o
+        };
+        let a = subdivide(&closed, &o).unwrap();
+        let b = subdivide(&closed, &edge_only).unwrap();
+        assert_eq!(a.positions, b.positions);
+        assert_eq!(a.face_indices, b.face_indices);
+
+        // A 5×5 grid: the 3×3 interior faces survive (each gives 4^2 or 2·4^2 faces).
+        let grid = generate::grid(5, 5, scheme == Scheme::Loop);
+        let a = subdivide(&grid, &o).unwrap();
+        let b = subdivide(&grid, &edge_only).unwrap();
+        let per_face = if scheme == Scheme::Loop { 2 * 16 } else { 16 };
+        assert_eq!(a.num_faces(), 9 * per_face, "{scheme:?}");
+        // Every surviving face is a face of the edge-only result, with the same positions.
+        let key = |m: &Mesh, f: usize| {
+            let (s, e) = (m.face_offsets[f] as usize, m.face_offsets[f + 1] as usize);
+            m.face_indices[s..e]
+                .iter()
+                .map(|&v| {
+                    let p = m.positions[v as usize];
+                    [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]
+                })
+                .collect::<Vec<_>>()
+        };
+        let all: std::collections::HashSet<_> = (0..b.num_faces()).map(|f| key(&b, f)).collect();
+        assert!((0..a.num_faces()).all(|f| all.contains(&key(&a, f))));
+        // No vertex is left unused.
+        assert!(a.referenced().iter().all(|&u| u));
+
+        // Explicitly sharpened boundary edges keep their faces.
+        let mut tagged = grid.clone();
+        let t = Topology::build(&grid);
+        for e in 0..t.num_edges() {
+            if t.is_boundary_edge(e) {
+                tagged.edge_tags.push(EdgeTag {
+                    vertices: t.edge_vertices[e],
+                    sharpness: SHARPNESS_INFINITE,
+                });
+            }
+        }
+        let a = subdivide(&tagged, &o).unwrap();
+        assert_eq!(a.num_faces(), b.num_faces(), "{scheme:?}");
+    }
+}

@@ -16,6 +16,7 @@
 pub mod catmull_clark;
 pub mod loop_scheme;
 pub mod midpoint;
+pub mod profile;
 pub mod refine;
 pub mod rules;
 pub mod stencil;
@@ -71,6 +72,14 @@ pub enum BoundaryMode {
     /// OpenSubdiv's `VTX_BOUNDARY_EDGE_AND_CORNER`: as `OpenSubdiv`, and boundary vertices with
     /// a single face are corners.
     OpenSubdivCorners,
+    /// OpenSubdiv's `VTX_BOUNDARY_NONE`: no boundary interpolation. For the smooth schemes
+    /// (Loop, Catmull-Clark), every face incident to a boundary vertex whose boundary edges are
+    /// not explicitly tagged infinitely sharp is a hole: it still supports its interior
+    /// neighbours (refinement is that of `OpenSubdiv`) but produces no surface, so the result
+    /// shrinks by a ring of faces at each such boundary. [`subdivide`] drops the holes'
+    /// descendants and the vertices only they use; [`Refinement::base_holes`] lists them. For
+    /// the linear schemes it equals `OpenSubdiv`, as in OpenSubdiv.
+    None,
 }
 
 /// Options of [`subdivide`] and [`Refinement::build`].
@@ -169,6 +178,12 @@ pub struct Refinement {
     pub edge_tags: Vec<EdgeTag>,
     /// Corner tags of the finest level.
     pub vertex_tags: Vec<VertexTag>,
+    /// Base faces that are holes ([`BoundaryMode::None`]), increasing; empty otherwise.
+    pub base_holes: Vec<u32>,
+    /// Number of levels refined.
+    pub levels: u32,
+    /// How faces were split at each level.
+    pub split: Split,
 }
 
 impl Refinement {
@@ -193,54 +208,12 @@ impl Refinement {
         keep_stencils: bool,
         keep_topologies: bool,
     ) -> Result<Refinement> {
-        mesh.check_indices()?;
-        if opts.scheme == Scheme::Loop {
-            require_arity(
-                mesh,
-                3,
-                "loop",
-                "triangles",
-                "use catmull-clark or bilinear (any polygons)",
-            )?;
-        }
-        let rules = rules_for(opts, mesh);
-        let split = rules.split();
-        let corners = mesh.face_indices.len() as u64;
-        let faces_out = match split {
-            Split::Triangles => mesh.num_faces() as u64 * 4u64.saturating_pow(opts.levels),
-            Split::Polygons => {
-                corners.saturating_mul(4u64.saturating_pow(opts.levels.saturating_sub(1)))
-            }
-        };
-        if opts.levels > 0 && faces_out > MAX_FACES {
-            return Err(Error::InvalidArgument(format!(
-                "{} levels of {} on {} faces would make {} faces, more than the {} supported; use fewer levels",
-                opts.levels,
-                opts.scheme.name(),
-                mesh.num_faces(),
-                faces_out,
-                MAX_FACES
-            )));
-        }
-        let mut topo = Topology::build(mesh);
-        require_manifold(&topo)?;
-        if let Some(deg) = opts.sharp_angle {
-            for e in sharp_edges_by_angle(mesh, &topo, deg) {
-                topo.edge_sharpness[e as usize] = SHARPNESS_INFINITE;
-            }
-        }
-        for e in 0..topo.num_edges() {
-            if topo.is_boundary_edge(e) {
-                topo.edge_sharpness[e] = SHARPNESS_INFINITE;
-            }
-        }
-        if opts.boundary == BoundaryMode::OpenSubdivCorners {
-            for v in 0..topo.num_vertices as usize {
-                if topo.vertex_faces(v).len() == 1 {
-                    topo.vertex_sharpness[v] = SHARPNESS_INFINITE;
-                }
-            }
-        }
+        let Prepared {
+            rules,
+            split,
+            mut topo,
+            base_holes,
+        } = prepare(mesh, opts)?;
         let mut positions = mesh.positions.clone();
         let mut topologies = Vec::with_capacity(opts.levels as usize);
         let mut stencils = Vec::new();
@@ -312,7 +285,28 @@ impl Refinement {
             positions,
             edge_tags,
             vertex_tags,
+            base_holes,
+            levels: opts.levels,
+            split,
         })
+    }
+
+    /// The finest-level faces that descend from base face `face` of `base` (the level-0
+    /// topology), by the ordering contract of [`refine`]: `4^L` consecutive triangles per base
+    /// triangle; `4^(L-1)` consecutive quads per base corner for polygon splits.
+    pub fn descendants(&self, base: &Topology, face: u32) -> std::ops::Range<usize> {
+        let f = face as usize;
+        match (self.levels, self.split) {
+            (0, _) => f..f + 1,
+            (l, Split::Triangles) => {
+                let n = 4usize.pow(l);
+                f * n..(f + 1) * n
+            }
+            (l, Split::Polygons) => {
+                let n = 4usize.pow(l - 1);
+                base.face_offsets[f] as usize * n..base.face_offsets[f + 1] as usize * n
+            }
+        }
     }
 
     /// Re-evaluates the finest level from new control values (one per level-0 vertex) with
@@ -362,6 +356,108 @@ impl Refinement {
             ..Mesh::new()
         }
     }
+}
+
+/// A level-0 topology ready to refine: the scheme's rules, its split, the topology with the
+/// sharpness the refiner uses (tags, `--sharp-angle` creases, boundaries and boundary corners),
+/// and the holes of [`BoundaryMode::None`].
+pub(crate) struct Prepared {
+    pub(crate) rules: Box<dyn Rules>,
+    pub(crate) split: Split,
+    pub(crate) topo: Topology,
+    pub(crate) base_holes: Vec<u32>,
+}
+
+/// Checks `mesh` for `opts` and prepares its level-0 topology (see [`Refinement::build`] for
+/// the errors).
+pub(crate) fn prepare(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Prepared> {
+    mesh.check_indices()?;
+    if opts.scheme == Scheme::Loop {
+        require_arity(
+            mesh,
+            3,
+            "loop",
+            "triangles",
+            "use catmull-clark or bilinear (any polygons)",
+        )?;
+    }
+    let rules = rules_for(opts, mesh);
+    let split = rules.split();
+    let corners = mesh.face_indices.len() as u64;
+    let faces_out = match split {
+        Split::Triangles => mesh.num_faces() as u64 * 4u64.saturating_pow(opts.levels),
+        Split::Polygons => {
+            corners.saturating_mul(4u64.saturating_pow(opts.levels.saturating_sub(1)))
+        }
+    };
+    if opts.levels > 0 && faces_out > MAX_FACES {
+        return Err(Error::InvalidArgument(format!(
+            "{} levels of {} on {} faces would make {} faces, more than the {} supported; use fewer levels",
+            opts.levels,
+            opts.scheme.name(),
+            mesh.num_faces(),
+            faces_out,
+            MAX_FACES
+        )));
+    }
+    let mut topo = Topology::build(mesh);
+    require_manifold(&topo)?;
+    if let Some(deg) = opts.sharp_angle {
+        for e in sharp_edges_by_angle(mesh, &topo, deg) {
+            topo.edge_sharpness[e as usize] = SHARPNESS_INFINITE;
+        }
+    }
+    let base_holes = if opts.boundary == BoundaryMode::None
+        && matches!(opts.scheme, Scheme::Loop | Scheme::CatmullClark)
+    {
+        boundary_holes(&topo)
+    } else {
+        Vec::new()
+    };
+    for e in 0..topo.num_edges() {
+        if topo.is_boundary_edge(e) {
+            topo.edge_sharpness[e] = SHARPNESS_INFINITE;
+        }
+    }
+    if opts.boundary == BoundaryMode::OpenSubdivCorners {
+        for v in 0..topo.num_vertices as usize {
+            if topo.vertex_faces(v).len() == 1 {
+                topo.vertex_sharpness[v] = SHARPNESS_INFINITE;
+            }
+        }
+    }
+    Ok(Prepared {
+        rules,
+        split,
+        topo,
+        base_holes,
+    })
+}
+
+/// Faces that are holes under [`BoundaryMode::None`] (OpenSubdiv's
+/// `TopologyRefinerFactoryBase::prepareComponentTagsAndSharpness`): those incident to a
+/// boundary vertex with a boundary edge not tagged infinitely sharp. Call before boundary edges
+/// are sharpened.
+fn boundary_holes(topo: &Topology) -> Vec<u32> {
+    let mut hole = vec![false; topo.num_faces()];
+    for v in 0..topo.num_vertices as usize {
+        let edges = topo.vertex_edges(v);
+        if edges.len() == topo.vertex_faces(v).len() {
+            continue;
+        }
+        let exclude = edges.iter().any(|&e| {
+            topo.is_boundary_edge(e as usize)
+                && !rules::is_infinite(topo.edge_sharpness[e as usize])
+        });
+        if exclude {
+            for &f in topo.vertex_faces(v) {
+                hole[f as usize] = true;
+            }
+        }
+    }
+    (0..topo.num_faces() as u32)
+        .filter(|&f| hole[f as usize])
+        .collect()
 }
 
 /// Sets the child level's sharpness from the parent's: each edge's halves by the creasing
@@ -443,6 +539,15 @@ fn finest_tags(parent: &Topology, creasing: Creasing) -> (Vec<EdgeTag>, Vec<Vert
 pub fn subdivide(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Mesh> {
     let carry = mesh.colors.is_some() || mesh.uvs.is_some();
     let r = Refinement::build_with(mesh, opts, carry, carry)?;
+    let holes: Vec<_> = if r.base_holes.is_empty() {
+        Vec::new()
+    } else {
+        let base = Topology::build(mesh);
+        r.base_holes
+            .iter()
+            .map(|&f| r.descendants(&base, f))
+            .collect()
+    };
     let mut out = Mesh::new();
     if carry {
         if let Some(c) = &mesh.colors {
@@ -457,5 +562,28 @@ pub fn subdivide(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Mesh> {
     out.face_indices = r.face_vertices;
     out.edge_tags = r.edge_tags;
     out.vertex_tags = r.vertex_tags;
+    if !holes.is_empty() {
+        drop_faces(&mut out, &holes);
+    }
     Ok(out)
+}
+
+/// Removes the faces in `ranges` and the vertices only they used.
+fn drop_faces(mesh: &mut Mesh, ranges: &[std::ops::Range<usize>]) {
+    let mut keep = vec![true; mesh.num_faces()];
+    for r in ranges {
+        keep[r.clone()].iter_mut().for_each(|k| *k = false);
+    }
+    let (mut offsets, mut indices) = (vec![0u32], Vec::new());
+    for f in (0..keep.len()).filter(|&f| keep[f]) {
+        let (a, b) = (
+            mesh.face_offsets[f] as usize,
+            mesh.face_offsets[f + 1] as usize,
+        );
+        indices.extend_from_slice(&mesh.face_indices[a..b]);
+        offsets.push(indices.len() as u32);
+    }
+    mesh.face_offsets = offsets;
+    mesh.face_indices = indices;
+    mesh.remove_unreferenced();
 }

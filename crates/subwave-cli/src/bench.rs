@@ -1,0 +1,65 @@
+//! `subwave bench ...`: timings without file output (medians of several runs).
+
+use std::io::Write;
+
+use anyhow::Result;
+use subwave::subdivision::loop_scheme::LoopWeights;
+use subwave::subdivision::profile::profile_subdivide;
+use subwave::subdivision::SubdivideOptions;
+
+use crate::print;
+use crate::subdivide::{boundary_mode, creasing, scheme};
+use crate::BenchSubdivideArgs;
+
+/// Runs `subwave bench subdivide`.
+pub fn subdivide(args: &BenchSubdivideArgs) -> Result<()> {
+    let name = print::path(&args.mesh);
+    let mut mesh = subwave::io::read_mesh(&args.mesh, args.format)?;
+    mesh.remove_unreferenced();
+    let opts = SubdivideOptions {
+        scheme: scheme(args.scheme),
+        levels: args.levels,
+        boundary: boundary_mode(args.boundary),
+        creasing: creasing(args.creasing),
+        loop_weights: LoopWeights::Loop,
+        sharp_angle: args.sharp_angle,
+    };
+    let p = profile_subdivide(&mesh, &opts, args.runs as usize)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.mesh.display()))?;
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    if args.json {
+        let text = serde_json::to_string_pretty(&p)?;
+        writeln!(out, "{text}")?;
+    } else {
+        let mb = |x: Option<f64>| x.map_or("n/a".to_string(), |x| format!("{x:.0} MiB"));
+        writeln!(
+            out,
+            "{name}: {} levels of {} ({} vertices, {} faces -> {} vertices, {} faces), median of {} runs",
+            args.levels,
+            opts.scheme.name(),
+            mesh.num_vertices(),
+            mesh.num_faces(),
+            p.vertices,
+            p.faces,
+            p.runs
+        )?;
+        let mut t = print::Table::new();
+        t.row("topology", format!("{:.1} ms", p.topology_ms))
+            .row("positions", format!("{:.1} ms", p.positions_ms))
+            .row("total", format!("{:.1} ms", p.total_ms))
+            .row("peak memory", mb(p.peak_rss_mb))
+            .row(
+                "stencils",
+                format!(
+                    "{:.1} ms to build, {:.0} MiB",
+                    p.stencil_build_ms, p.stencil_mb
+                ),
+            )
+            .row("re-evaluation", format!("{:.1} ms", p.reevaluate_ms))
+            .row("peak with stencils", mb(p.peak_rss_reevaluate_mb));
+        t.write(&mut out, "  ")?;
+    }
+    out.flush()?;
+    Ok(())
+}

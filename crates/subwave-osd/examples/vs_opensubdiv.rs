@@ -1,0 +1,137 @@
+//! Plain subdivision, subwave beside OpenSubdiv in one process: the benchmark of the plain
+//! subdivision issue ("Performance"). Release build:
+//!
+//! ```text
+//! cargo run --release -p subwave-osd --example vs_opensubdiv -- MESH [loop|catmull-clark] [LEVELS] [RUNS]
+//! ```
+//!
+//! Both refine uniformly with OpenSubdiv's "edge only" boundaries and uniform creasing. Times
+//! are medians of RUNS runs (default 5); OpenSubdiv's total is its topology (factory and
+//! `RefineUniform`) plus position interpolation (`PrimvarRefiner`), subwave's total is
+//! `subdivide` end to end. Re-evaluation: subwave applies its cached per-level stencil tables,
+//! OpenSubdiv evaluates its factorized finest-level stencil table (`Osd::CpuEvaluator`). Peak
+//! memory is the resident-set high-water mark, reset before each side.
+
+use std::path::PathBuf;
+
+use subwave::subdivision::profile::{peak_rss_mb, profile_subdivide, reset_peak_rss};
+use subwave::subdivision::{BoundaryMode, Scheme, SubdivideOptions};
+use subwave_osd::{refine_timed, OsdOptions, OsdScheme};
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let Some(path) = args.first().map(PathBuf::from) else {
+        eprintln!("usage: vs_opensubdiv MESH [loop|catmull-clark] [LEVELS] [RUNS]");
+        std::process::exit(2);
+    };
+    let (scheme, osd_scheme) = match args.get(1).map_or("loop", String::as_str) {
+        "loop" => (Scheme::Loop, OsdScheme::Loop),
+        "catmull-clark" => (Scheme::CatmullClark, OsdScheme::CatmullClark),
+        other => {
+            eprintln!("unknown scheme {other}: loop or catmull-clark");
+            std::process::exit(2);
+        }
+    };
+    let levels: u32 = args.get(2).map_or(3, |s| s.parse().expect("LEVELS"));
+    let runs: usize = args.get(3).map_or(5, |s| s.parse().expect("RUNS"));
+    let mut mesh = match subwave::io::read_mesh(&path, None) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(1);
+        }
+    };
+    mesh.remove_unreferenced();
+
+    // OpenSubdiv.
+    let opts = OsdOptions {
+        scheme: osd_scheme,
+        levels,
+        ..OsdOptions::default()
+    };
+    reset_peak_rss();
+    let mut t = Vec::new();
+    let mut faces = 0;
+    for _ in 0..runs {
+        let (m, timing) = refine_timed(&mesh, &opts).expect("OpenSubdiv refines the mesh");
+        faces = m.num_faces();
+        t.push(timing);
+    }
+    let osd_peak = peak_rss_mb().unwrap_or(f64::NAN);
+    let osd_topology = median(t.iter().map(|x| x.topology_ms).collect());
+    let osd_positions = median(t.iter().map(|x| x.positions_ms).collect());
+    let osd_total = median(t.iter().map(|x| x.topology_ms + x.positions_ms).collect());
+    let osd_eval = median(
+        t.iter()
+            .map(|x| x.stencil_eval_ms.unwrap_or(f64::NAN))
+            .collect(),
+    );
+
+    // subwave.
+    let ours = SubdivideOptions {
+        scheme,
+        levels,
+        boundary: BoundaryMode::OpenSubdiv,
+        ..SubdivideOptions::default()
+    };
+    let p = profile_subdivide(&mesh, &ours, runs).expect("subwave refines the mesh");
+    assert_eq!(p.faces, faces, "both produce the same number of faces");
+
+    println!(
+        "{}: {} levels of {}, {} -> {} faces, medians of {runs} runs",
+        path.display(),
+        levels,
+        scheme.name(),
+        mesh.num_faces(),
+        p.faces
+    );
+    println!(
+        "{:<34} {:>12} {:>12} {:>8}",
+        "", "subwave", "OpenSubdiv", "ratio"
+    );
+    let row = |label: &str, a: f64, b: f64, unit: &str| {
+        println!(
+            "{label:<34} {:>9.1} {unit:<2} {:>9.1} {unit:<2} {:>8.3}",
+            a,
+            b,
+            a / b
+        );
+    };
+    row("topology", p.topology_ms, osd_topology, "ms");
+    row("positions", p.positions_ms, osd_positions, "ms");
+    row("total", p.total_ms, osd_total, "ms");
+    row(
+        "re-evaluation vs OSD positions",
+        p.reevaluate_ms,
+        osd_positions,
+        "ms",
+    );
+    row(
+        "re-evaluation vs OSD stencil eval",
+        p.reevaluate_ms,
+        osd_eval,
+        "ms",
+    );
+    row(
+        "peak memory (subdivide)",
+        p.peak_rss_mb.unwrap_or(f64::NAN),
+        osd_peak,
+        "MB",
+    );
+    println!(
+        "subwave stencils: {:.1} ms to build, {:.0} MiB; peak with stencils {:.0} MiB",
+        p.stencil_build_ms,
+        p.stencil_mb,
+        p.peak_rss_reevaluate_mb.unwrap_or(f64::NAN)
+    );
+}

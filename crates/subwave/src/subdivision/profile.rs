@@ -1,0 +1,216 @@
+//! Timing and memory profile of plain subdivision: what `subwave bench subdivide` reports.
+//!
+//! The benchmark (plain subdivision, "Performance") asks for the topology time, the
+//! position time, the total, the re-evaluation time with cached stencils (Maret §5.1.1) and the
+//! peak memory, each a median of several runs, without file output. Topology and positions
+//! overlap in [`subdivide`] (they run in parallel), so they are timed here apart:
+//! - *topology*: [`prepare`] and, per level, the child tables ([`refine::refine_topology`]) and
+//!   sharpness, the finest level's faces and tags;
+//! - *positions*: per level, the child positions from the prepared topologies
+//!   ([`stencil::level_apply`]);
+//! - *total*: [`subdivide`] end to end (mesh in, mesh out);
+//! - *re-evaluation*: [`Refinement::evaluate`] of the level-0 positions with the stencils kept.
+//!
+//! Peak memory is the process's resident-set high-water mark (`VmHWM` of `/proc/self/status`),
+//! reset before each phase (`/proc/self/clear_refs`); `None` where Linux's `/proc` is missing.
+
+use std::time::Instant;
+
+use glam::DVec3;
+
+use super::stencil::{self, LevelContext};
+use super::{child_sharpness, finest_tags, prepare, refine, subdivide, Refinement};
+use super::{SubdivideOptions, Topology};
+use crate::mesh::Mesh;
+use crate::Result;
+
+/// Medians of `runs` runs of each phase, in milliseconds, and the sizes of the result.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SubdivideProfile {
+    /// Topology of every level (tables, sharpness, finest faces and tags).
+    pub topology_ms: f64,
+    /// Positions of every level from the prepared topologies.
+    pub positions_ms: f64,
+    /// [`subdivide`] end to end, topology and positions overlapped.
+    pub total_ms: f64,
+    /// Re-evaluation of the finest positions with cached stencil tables.
+    pub reevaluate_ms: f64,
+    /// Building the refinement with its stencil tables (once, not a median).
+    pub stencil_build_ms: f64,
+    /// Peak resident memory of [`subdivide`], MiB (`None` off Linux).
+    pub peak_rss_mb: Option<f64>,
+    /// Peak resident memory while the stencil tables are built and applied, MiB.
+    pub peak_rss_reevaluate_mb: Option<f64>,
+    /// Memory of the cached stencil tables, MiB.
+    pub stencil_mb: f64,
+    /// Vertices of the finest level.
+    pub vertices: usize,
+    /// Faces of the finest level.
+    pub faces: usize,
+    /// Runs per median.
+    pub runs: usize,
+}
+
+/// Profiles `opts` on `mesh` with `runs` runs per phase (at least 1).
+///
+/// # Errors
+/// As [`Refinement::build`].
+pub fn profile_subdivide(
+    mesh: &Mesh,
+    opts: &SubdivideOptions,
+    runs: usize,
+) -> Result<SubdivideProfile> {
+    let runs = runs.max(1);
+    reset_peak_rss();
+    let mut out = None;
+    let total_ms = median(runs, || {
+        out = None; // free the previous result before the next run
+        let t = Instant::now();
+        out = Some(subdivide(mesh, opts));
+        t.elapsed()
+    });
+    let fine = out.expect("runs >= 1")?;
+    let peak_subdivide = peak_rss_mb();
+    let (vertices, faces) = (fine.num_vertices(), fine.num_faces());
+    drop(fine);
+
+    let mut topologies = Vec::new();
+    let topology_ms = median(runs, || {
+        topologies.clear();
+        let t = Instant::now();
+        topologies = topology_levels(mesh, opts);
+        t.elapsed()
+    });
+    let prepared = prepare(mesh, opts)?;
+    let positions_ms = median(runs, || {
+        let t = Instant::now();
+        let mut p: Vec<DVec3> = mesh.positions.clone();
+        for topo in &topologies {
+            let ctx = LevelContext {
+                rules: prepared.rules.as_ref(),
+                creasing: opts.creasing,
+                positions: &p,
+            };
+            p = stencil::level_apply(topo, &ctx, &p);
+        }
+        std::hint::black_box(&p);
+        t.elapsed()
+    });
+    drop(topologies);
+
+    reset_peak_rss();
+    let t = Instant::now();
+    let r = Refinement::build(mesh, opts, true)?;
+    let stencil_build_ms = t.elapsed().as_secs_f64() * 1e3;
+    let stencil_mb =
+        r.stencils.iter().map(|s| s.memory_bytes()).sum::<usize>() as f64 / (1 << 20) as f64;
+    let reevaluate_ms = median(runs, || {
+        let t = Instant::now();
+        std::hint::black_box(r.evaluate(&mesh.positions).expect("stencils kept"));
+        t.elapsed()
+    });
+    let peak_rss_reevaluate_mb = peak_rss_mb();
+    Ok(SubdivideProfile {
+        topology_ms,
+        positions_ms,
+        total_ms,
+        reevaluate_ms,
+        stencil_build_ms,
+        peak_rss_mb: peak_subdivide,
+        peak_rss_reevaluate_mb,
+        stencil_mb,
+        vertices,
+        faces,
+        runs,
+    })
+}
+
+/// The topology phase: level-0 preparation, then every level's child tables and sharpness
+/// (the finest level's faces and tags only). Returns the topologies of levels `0..levels`
+/// (empty on error: the total phase has reported errors already).
+fn topology_levels(mesh: &Mesh, opts: &SubdivideOptions) -> Vec<Topology> {
+    let Ok(p) = prepare(mesh, opts) else {
+        return Vec::new();
+    };
+    let mut topo = p.topo;
+    let mut levels = Vec::with_capacity(opts.levels as usize);
+    for level in 0..opts.levels {
+        if level + 1 < opts.levels {
+            let (mut child, halves) = refine::refine_topology(&topo, p.split, false);
+            child_sharpness(&topo, &mut child, &halves, opts.creasing);
+            levels.push(std::mem::replace(&mut topo, child));
+        } else {
+            std::hint::black_box(refine::child_faces(&topo, p.split));
+            std::hint::black_box(finest_tags(&topo, opts.creasing));
+            levels.push(std::mem::take(&mut topo));
+        }
+    }
+    levels
+}
+
+/// Median of `runs` timings of `f`, in milliseconds.
+fn median(runs: usize, mut f: impl FnMut() -> std::time::Duration) -> f64 {
+    let mut t: Vec<f64> = (0..runs).map(|_| f().as_secs_f64() * 1e3).collect();
+    t.sort_by(f64::total_cmp);
+    if runs % 2 == 1 {
+        t[runs / 2]
+    } else {
+        0.5 * (t[runs / 2 - 1] + t[runs / 2])
+    }
+}
+
+/// Resets the resident-set high-water mark (Linux `clear_refs` value 5); a no-op elsewhere.
+pub fn reset_peak_rss() {
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+}
+
+/// The resident-set high-water mark in MiB (Linux `VmHWM`), `None` where unavailable.
+pub fn peak_rss_mb() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::generate;
+    use crate::subdivision::Scheme;
+
+    #[test]
+    fn profile_reports_the_result_sizes() {
+        let mesh = generate::icosphere(1);
+        for scheme in [Scheme::Loop, Scheme::CatmullClark] {
+            let opts = SubdivideOptions {
+                scheme,
+                levels: 2,
+                ..Default::default()
+            };
+            let p = profile_subdivide(&mesh, &opts, 3).unwrap();
+            let fine = subdivide(&mesh, &opts).unwrap();
+            assert_eq!(
+                (p.vertices, p.faces),
+                (fine.num_vertices(), fine.num_faces())
+            );
+            assert!(p.total_ms > 0.0 && p.topology_ms > 0.0 && p.positions_ms > 0.0);
+            assert!(p.stencil_mb > 0.0);
+            if cfg!(target_os = "linux") {
+                assert!(p.peak_rss_mb.unwrap() > 1.0);
+            }
+        }
+        // Errors come through: Loop on quads.
+        let opts = SubdivideOptions::default();
+        assert!(profile_subdivide(&generate::cube(), &opts, 1).is_err());
+    }
+
+    #[test]
+    fn median_of_runs() {
+        let mut k = 0u64;
+        let m = median(3, || {
+            k += 1;
+            std::time::Duration::from_millis([5, 1, 3][(k - 1) as usize])
+        });
+        assert_eq!(m, 3.0);
+    }
+}
