@@ -409,3 +409,58 @@ fn boundary_none_drops_boundary_faces() {
         assert_eq!(a.num_faces(), b.num_faces(), "{scheme:?}");
     }
 }
+
+/// Face-varying texture coordinates follow the faces: one per child corner, linear on each face,
+/// for every scheme and with holes dropped.
+#[test]
+fn face_varying_uvs_are_refined() {
+    use subwave::mesh::FaceVarying;
+    for (mesh, scheme) in [
+        (generate::cube(), Scheme::CatmullClark),
+        (generate::icosphere(0), Scheme::Loop),
+        (generate::grid(3, 3, false), Scheme::CatmullClark),
+    ] {
+        let mut m = mesh.clone();
+        // Planar projection per corner, every face with its own values (all seams).
+        let coords: Vec<[f64; 2]> = m
+            .face_indices
+            .iter()
+            .map(|&v| [m.positions[v as usize].x, m.positions[v as usize].y])
+            .collect();
+        m.face_uvs = Some(FaceVarying {
+            indices: (0..coords.len() as u32).collect(),
+            coords,
+        });
+        for boundary in [BoundaryMode::Crease, BoundaryMode::None] {
+            let o = SubdivideOptions {
+                scheme,
+                levels: 2,
+                boundary,
+                ..Default::default()
+            };
+            let r = subdivide(&m, &o).unwrap();
+            r.check_indices().unwrap();
+            let fv = r.face_uvs.as_ref().expect("face-varying data kept");
+            assert_eq!(fv.indices.len(), r.face_indices.len());
+            // The bilinear scheme moves vertices linearly too, so its positions' x, y equal
+            // the face-varying values corner by corner.
+            let lin = subdivide(
+                &m,
+                &SubdivideOptions {
+                    scheme: Scheme::Bilinear,
+                    boundary,
+                    ..o
+                },
+            )
+            .unwrap();
+            if scheme == Scheme::CatmullClark {
+                let fv = lin.face_uvs.as_ref().unwrap();
+                for (c, &v) in lin.face_indices.iter().enumerate() {
+                    let p = lin.positions[v as usize];
+                    let t = fv.coords[fv.indices[c] as usize];
+                    assert!((p.x - t[0]).abs() < 1e-12 && (p.y - t[1]).abs() < 1e-12);
+                }
+            }
+        }
+    }
+}

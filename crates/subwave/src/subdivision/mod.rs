@@ -14,6 +14,7 @@
 //! number of sharp incident edges or a corner tag.
 
 pub mod catmull_clark;
+pub mod face_varying;
 pub mod loop_scheme;
 pub mod midpoint;
 pub mod profile;
@@ -532,7 +533,8 @@ fn finest_tags(parent: &Topology, creasing: Creasing) -> (Vec<EdgeTag>, Vec<Vert
 }
 
 /// Subdivides `mesh` and returns the finest level, with per-vertex colours and texture
-/// coordinates interpolated as vertex-varying data and crease tags carried to the new edges.
+/// coordinates interpolated as vertex-varying data, face-varying texture coordinates
+/// interpolated linearly per face ([`face_varying`]) and crease tags carried to the new edges.
 ///
 /// # Errors
 /// As [`Refinement::build`].
@@ -562,6 +564,14 @@ pub fn subdivide(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Mesh> {
     out.face_indices = r.face_vertices;
     out.edge_tags = r.edge_tags;
     out.vertex_tags = r.vertex_tags;
+    if let Some(fv) = &mesh.face_uvs {
+        out.face_uvs = Some(face_varying::refine_linear(
+            fv,
+            &mesh.face_offsets,
+            r.split,
+            r.levels,
+        ));
+    }
     if !holes.is_empty() {
         drop_faces(&mut out, &holes);
     }
@@ -574,16 +584,22 @@ fn drop_faces(mesh: &mut Mesh, ranges: &[std::ops::Range<usize>]) {
     for r in ranges {
         keep[r.clone()].iter_mut().for_each(|k| *k = false);
     }
-    let (mut offsets, mut indices) = (vec![0u32], Vec::new());
+    let (mut offsets, mut indices, mut uv) = (vec![0u32], Vec::new(), Vec::new());
     for f in (0..keep.len()).filter(|&f| keep[f]) {
         let (a, b) = (
             mesh.face_offsets[f] as usize,
             mesh.face_offsets[f + 1] as usize,
         );
         indices.extend_from_slice(&mesh.face_indices[a..b]);
+        if let Some(fv) = &mesh.face_uvs {
+            uv.extend_from_slice(&fv.indices[a..b]);
+        }
         offsets.push(indices.len() as u32);
     }
     mesh.face_offsets = offsets;
     mesh.face_indices = indices;
+    if let Some(fv) = &mut mesh.face_uvs {
+        fv.indices = uv;
+    }
     mesh.remove_unreferenced();
 }
