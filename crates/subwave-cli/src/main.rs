@@ -13,6 +13,7 @@ use clap::{Parser, Subcommand};
 mod bench;
 mod convert;
 mod demo;
+mod distance;
 mod info;
 mod print;
 mod subdivide;
@@ -43,9 +44,30 @@ enum Command {
     /// Subdivide a mesh: Loop, midpoint, Catmull-Clark or bilinear, with crease/dart/corner tags
     /// from the file's `t crease` / `t corner` lines and from --sharp-angle.
     Subdivide(SubdivideArgs),
+    /// Metro-style symmetric surface distance between two meshes: RMS both ways, Hausdorff,
+    /// PSNR = 20 log10(diagonal of A / larger RMS).
+    Distance(DistanceArgs),
     /// Benchmarks without file output (medians of several runs).
     #[command(subcommand)]
     Bench(BenchCommand),
+}
+
+/// Arguments of `subwave distance`.
+#[derive(Debug, clap::Args)]
+pub struct DistanceArgs {
+    /// The reference mesh (its bounding-box diagonal scales the PSNR).
+    #[arg(value_name = "A")]
+    pub a: PathBuf,
+    /// The mesh compared with it.
+    #[arg(value_name = "B")]
+    pub b: PathBuf,
+    /// Area samples per surface (vertices are sampled too).
+    #[arg(long, value_name = "N", default_value_t = 200_000,
+          value_parser = clap::value_parser!(u64).range(1..=100_000_000))]
+    pub samples: u64,
+    /// Print JSON (keys rms, max, psnr, rms_ab, rms_ba, diagonal, ab, ba).
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// What `subwave bench` measures.
@@ -235,6 +257,7 @@ fn main() -> ExitCode {
         Command::Convert(args) => convert::run(&args),
         Command::Demo(args) => demo::run(&args),
         Command::Subdivide(args) => subdivide::run(&args),
+        Command::Distance(args) => distance::run(&args),
         Command::Bench(BenchCommand::Subdivide(args)) => bench::subdivide(&args),
     };
     match result {

@@ -777,3 +777,27 @@ fn bench_subdivide_prints_the_documented_json() {
     let text = ok(&["bench", "subdivide", &input, "--levels", "1", "--runs", "1"]);
     assert!(text.contains("re-evaluation"), "{text}");
 }
+
+#[test]
+fn distance_prints_the_documented_json() {
+    let dir = tmp();
+    let a = generate::grid(4, 4, true);
+    let mut b = a.clone();
+    for p in &mut b.positions {
+        p.z += 0.5;
+    }
+    let pa = put(dir.path(), "a.obj", &a);
+    let pb = put(dir.path(), "b.ply", &b);
+    let text = ok(&["distance", &pa, &pb, "--json", "--samples", "2000"]);
+    let v: Value = serde_json::from_str(&text).expect("JSON");
+    for key in ["rms", "max", "psnr", "rms_ab", "rms_ba"] {
+        assert!(v.get(key).is_some(), "missing {key} in {text}");
+    }
+    assert!((v["rms"].as_f64().unwrap() - 0.5).abs() < 1e-12);
+    let text = ok(&["distance", &pa, &pb]);
+    assert!(text.contains("psnr"), "{text}");
+    let empty = dir.path().join("empty.obj");
+    std::fs::write(&empty, "v 0 0 0\n").unwrap();
+    let err = fails(&["distance", &pa, &empty.to_string_lossy()]);
+    assert!(err.contains("no faces"), "{err}");
+}

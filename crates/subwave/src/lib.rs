@@ -8,9 +8,11 @@
 //! - [`topology`]: edges, ordered 1-rings, boundary loops, components and tags, as flat tables;
 //! - [`validate`]: the report behind `subwave info` and the checks behind every algorithm;
 //! - [`io`]: OBJ, OFF, PLY, STL readers; OBJ, OFF, PLY, GLB writers;
-//! - [`generate`]: meshes the tests and the demo build themselves.
+//! - [`generate`]: meshes the tests and the demo build themselves;
+//! - [`distance`]: Metro-style surface distance (RMS, Hausdorff, PSNR).
 #![warn(missing_docs)]
 
+pub mod distance;
 pub mod error;
 pub mod generate;
 pub mod io;
