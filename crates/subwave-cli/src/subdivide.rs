@@ -20,6 +20,8 @@ pub enum SchemeArg {
     CatmullClark,
     /// Bilinear (any polygons, split into quads).
     Bilinear,
+    /// Modified butterfly (triangles), interpolating, with crease/dart/corner tags.
+    Butterfly,
 }
 
 /// Boundary treatment on the command line.
@@ -68,6 +70,7 @@ pub fn run(args: &SubdivideArgs) -> Result<()> {
             SchemeArg::Midpoint => Scheme::Midpoint,
             SchemeArg::CatmullClark => Scheme::CatmullClark,
             SchemeArg::Bilinear => Scheme::Bilinear,
+            SchemeArg::Butterfly => Scheme::Butterfly,
         },
         levels: args.levels,
         boundary: match args.boundary {

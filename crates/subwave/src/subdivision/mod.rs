@@ -13,6 +13,7 @@
 //! boundary edges infinitely sharp, vertex rules smooth / dart / crease / corner from the
 //! number of sharp incident edges or a corner tag.
 
+pub mod butterfly;
 pub mod catmull_clark;
 pub mod loop_scheme;
 pub mod midpoint;
@@ -26,6 +27,7 @@ use crate::mesh::{EdgeTag, Mesh, VertexTag, SHARPNESS_INFINITE};
 use crate::topology::Topology;
 use crate::validate::{require_arity, require_manifold};
 use crate::{Error, Result};
+use butterfly::ButterflyRules;
 use catmull_clark::CatmullClarkRules;
 use loop_scheme::{LoopBoundary, LoopRules, LoopWeights};
 use midpoint::MidpointRules;
@@ -44,6 +46,8 @@ pub enum Scheme {
     CatmullClark,
     /// Bilinear (any polygons, 1-to-n quads, face points at centroids).
     Bilinear,
+    /// Modified butterfly (triangles), interpolating, with crease tags.
+    Butterfly,
 }
 
 impl Scheme {
@@ -54,6 +58,7 @@ impl Scheme {
             Scheme::Midpoint => "midpoint",
             Scheme::CatmullClark => "catmull-clark",
             Scheme::Bilinear => "bilinear",
+            Scheme::Butterfly => "butterfly",
         }
     }
 }
@@ -128,6 +133,7 @@ fn rules_for(opts: &SubdivideOptions, mesh: &Mesh) -> Box<dyn Rules> {
             split: Split::Polygons,
         }),
         Scheme::CatmullClark => Box::new(CatmullClarkRules),
+        Scheme::Butterfly => Box::new(ButterflyRules),
     }
 }
 
@@ -203,6 +209,15 @@ impl Refinement {
                 "use catmull-clark or bilinear (any polygons)",
             )?;
         }
+        if opts.scheme == Scheme::Butterfly {
+            require_arity(
+                mesh,
+                3,
+                "butterfly",
+                "triangles",
+                "use catmull-clark or bilinear (any polygons)",
+            )?;
+        }
         let rules = rules_for(opts, mesh);
         let split = rules.split();
         let corners = mesh.face_indices.len() as u64;
@@ -270,7 +285,8 @@ impl Refinement {
             };
             let child = || {
                 if level + 1 < opts.levels {
-                    let (mut child, halves) = refine::refine_topology(&topo, split, false);
+                    let (mut child, halves) =
+                        refine::refine_topology(&topo, split, rules.needs_rings());
                     child_sharpness(&topo, &mut child, &halves, opts.creasing);
                     Next::Child(Box::new(child))
                 } else {
