@@ -376,7 +376,11 @@ fn butterfly_counts_interpolation_affine_planar() {
             assert!((affine(*p) - *q).length() < 1e-12);
         }
     }
-    for m in [generate::triangle_grid(4), generate::disk(5), generate::disk(9)] {
+    for m in [
+        generate::triangle_grid(4),
+        generate::disk(5),
+        generate::disk(9),
+    ] {
         let out = subdivide(&m, &butterfly(3)).unwrap();
         assert!(out.positions.iter().all(|p| p.z == 0.0));
     }
@@ -433,10 +437,15 @@ fn butterfly_on_regular_grid_is_the_8_point_stencil() {
             continue;
         }
         let hp = |q: (i64, i64)| h(q.0, q.1);
-        let wing = |x: (i64, i64), y: (i64, i64), z: (i64, i64)| hp((x.0 + y.0 - z.0, x.1 + y.1 - z.1));
+        let wing =
+            |x: (i64, i64), y: (i64, i64), z: (i64, i64)| hp((x.0 + y.0 - z.0, x.1 + y.1 - z.1));
         let expect = 0.5 * (hp(a) + hp(b)) + 0.125 * (hp(c) + hp(d))
             - (wing(a, c, b) + wing(b, c, a) + wing(a, d, b) + wing(b, d, a)) / 16.0;
-        assert!((p.z - expect).abs() < 1e-12, "at {x2},{y2}: {} vs {expect}", p.z);
+        assert!(
+            (p.z - expect).abs() < 1e-12,
+            "at {x2},{y2}: {} vs {expect}",
+            p.z
+        );
         checked += 1;
     }
     assert!(checked > 80, "{checked}");
@@ -450,7 +459,10 @@ fn butterfly_on_regular_grid_is_the_8_point_stencil() {
     let (lo, hi) = (t.offsets[j] as usize, t.offsets[j + 1] as usize);
     let mut w: Vec<f64> = t.weights[lo..hi].to_vec();
     w.sort_by(f64::total_cmp);
-    assert_eq!(w, [-0.0625, -0.0625, -0.0625, -0.0625, 0.125, 0.125, 0.5, 0.5]);
+    assert_eq!(
+        w,
+        [-0.0625, -0.0625, -0.0625, -0.0625, 0.125, 0.125, 0.5, 0.5]
+    );
 }
 
 #[test]
@@ -473,7 +485,12 @@ fn butterfly_reproduces_linear_and_cubic_functions() {
                 continue;
             }
             let flat = DVec3::new(p.x, p.y, 0.0);
-            assert!((p.z - f(flat)).abs() < 1e-11, "{x2},{y2}: {} vs {}", p.z, f(flat));
+            assert!(
+                (p.z - f(flat)).abs() < 1e-11,
+                "{x2},{y2}: {} vs {}",
+                p.z,
+                f(flat)
+            );
             checked += 1;
         }
         assert!(checked > 100);
@@ -518,7 +535,10 @@ fn butterfly_converges_on_an_icosphere() {
     let offsets = |levels: u32| {
         let coarse = subdivide(&m, &butterfly(levels - 1)).unwrap();
         let fine = subdivide(&m, &butterfly(levels)).unwrap();
-        assert_eq!(&fine.positions[..coarse.num_vertices()], &coarse.positions[..]);
+        assert_eq!(
+            &fine.positions[..coarse.num_vertices()],
+            &coarse.positions[..]
+        );
         let t = Topology::build(&coarse);
         (0..t.num_edges())
             .map(|e| {
@@ -527,7 +547,9 @@ fn butterfly_converges_on_an_icosphere() {
                 let d = fine.positions[coarse.num_vertices() + e] - mid;
                 (d.dot(mid.normalize()).abs(), d.length())
             })
-            .fold((0.0, 0.0), |(x, y), (a, b)| (f64::max(x, a), f64::max(y, b)))
+            .fold((0.0, 0.0), |(x, y), (a, b)| {
+                (f64::max(x, a), f64::max(y, b))
+            })
     };
     let ((n2, _), (n3, t3), (n4, t4)) = (offsets(2), offsets(3), offsets(4));
     assert!(n3 < 0.32 * n2 && n4 < 0.32 * n3, "{n2} {n3} {n4}");

@@ -86,7 +86,11 @@ enum VirtualRing {
     /// An end on a crease or corner: the sector of `faces` faces holding the edge, the edge
     /// being its `back`-th ring vertex from the sector's first sharp edge; virtual valence
     /// `2 faces`.
-    Sector { faces: usize, back: usize, valence: usize },
+    Sector {
+        faces: usize,
+        back: usize,
+        valence: usize,
+    },
 }
 
 impl VirtualRing {
@@ -143,8 +147,7 @@ impl ButterflyRules {
     fn crease_mask(rings: &[EndRing; 2], num_faces: usize, m: &mut EdgeMask) {
         m.clear_with_rings(num_faces, [rings[0].valence(), rings[1].valence()]);
         m.ends = [9.0 / 16.0, 9.0 / 16.0];
-        for k in 0..2 {
-            let r = &rings[k];
+        for (k, r) in rings.iter().enumerate() {
             let mut others = (1..r.valence()).filter(|&j| r.sharpness[j] > 0.0);
             match (r.vertex_sharpness > 0.0, others.next(), others.next()) {
                 (false, Some(j), None) => m.rings[k][j] -= 1.0 / 16.0,

@@ -1,7 +1,7 @@
 //! Plain subdivision surfaces: scheme rules, a generic refiner and stencil tables.
 //!
 //! The layers follow OpenSubdiv:
-//! - **rules** ([`rules`], one file per scheme: [`loop_scheme`], [`catmull_clark`],
+//! - **rules** ([`rules`], one file per scheme: [`loop_scheme`], [`catmull_clark`], [`butterfly`],
 //!   [`midpoint`]): pure masks from a local neighbourhood (valence, sharpness, tags, sector);
 //! - **refinement** ([`refine`]): each child level's flat tables built directly from the
 //!   parent's, following the ordering contract documented there;
