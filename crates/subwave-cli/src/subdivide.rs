@@ -22,6 +22,8 @@ pub enum SchemeArg {
     Bilinear,
     /// Modified butterfly (triangles), interpolating, with crease/dart/corner tags.
     Butterfly,
+    /// The original 8-point butterfly at every edge (triangles; MeshLab's butterfly).
+    ButterflyOriginal,
 }
 
 /// Boundary treatment on the command line.
@@ -71,6 +73,7 @@ pub fn run(args: &SubdivideArgs) -> Result<()> {
             SchemeArg::CatmullClark => Scheme::CatmullClark,
             SchemeArg::Bilinear => Scheme::Bilinear,
             SchemeArg::Butterfly => Scheme::Butterfly,
+            SchemeArg::ButterflyOriginal => Scheme::ButterflyOriginal,
         },
         levels: args.levels,
         boundary: match args.boundary {

@@ -579,3 +579,52 @@ fn butterfly_stencils_reevaluate_bit_for_bit() {
         assert_eq!(cached, subdivide(&moved, &o).unwrap().positions);
     }
 }
+
+/// The original butterfly computed from scratch on a closed triangle mesh with a half-edge
+/// map (independent of the rings): the point of each edge, in `Topology` edge order.
+fn brute_force_8_point(m: &Mesh) -> Vec<DVec3> {
+    let mut opp = std::collections::HashMap::new();
+    for f in 0..m.num_faces() {
+        let v = m.face(f);
+        for i in 0..3 {
+            opp.insert((v[i], v[(i + 1) % 3]), v[(i + 2) % 3]);
+        }
+    }
+    let t = Topology::build(m);
+    let p = |i: u32| m.positions[i as usize];
+    t.edge_vertices
+        .iter()
+        .map(|&[a, b]| {
+            let (c, d) = (opp[&(a, b)], opp[&(b, a)]);
+            let wings = [opp[&(a, c)], opp[&(c, b)], opp[&(b, d)], opp[&(d, a)]];
+            0.5 * (p(a) + p(b)) + 0.125 * (p(c) + p(d))
+                - wings.iter().map(|&w| p(w)).sum::<DVec3>() / 16.0
+        })
+        .collect()
+}
+
+#[test]
+fn butterfly_original_matches_a_brute_force_8_point_rule() {
+    // Valences 3 (tetrahedron), 5 and 6 (icosphere), 6 (torus).
+    for m in [
+        generate::tetrahedron(),
+        generate::icosphere(1),
+        generate::torus(1.0, 0.4, 5, 4, true),
+    ] {
+        let o = opts(Scheme::ButterflyOriginal, 1);
+        let mut level = m.clone();
+        for _ in 0..3 {
+            let next = subdivide(&level, &o).unwrap();
+            let expect = brute_force_8_point(&level);
+            let got = &next.positions[level.num_vertices()..];
+            assert_eq!(got.len(), expect.len());
+            for (g, e) in got.iter().zip(&expect) {
+                assert!((*g - *e).length() < 1e-13, "{g} vs {e}");
+            }
+            level = next;
+        }
+        // Level by level equals all levels at once (child numbering = Topology::build's).
+        let all = subdivide(&m, &opts(Scheme::ButterflyOriginal, 3)).unwrap();
+        assert_eq!(all.positions, level.positions);
+    }
+}

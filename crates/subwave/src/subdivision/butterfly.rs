@@ -59,9 +59,26 @@ use std::f64::consts::TAU;
 use super::refine::Split;
 use super::rules::{EdgeMask, EdgeNeighborhood, EndRing, Rules, VertexMask, VertexNeighborhood};
 
-/// The modified butterfly's rules.
+/// Which butterfly.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ButterflyVariant {
+    /// Zorin, Schröder & Sweldens' modified butterfly (the AFX scheme).
+    #[default]
+    Modified,
+    /// The original 8-point butterfly of Dyn, Levin & Gregory 1990 at every smooth edge,
+    /// whatever the valences (Maret §5.3 notes AFX stencils for butterfly "modified or not";
+    /// MeshLab's butterfly). The wings are the ring vertices two steps from the edge around
+    /// each end (at a valence-3 end, the other opposite vertex); creases as in the modified
+    /// scheme.
+    Original,
+}
+
+/// The butterfly's rules.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct ButterflyRules;
+pub struct ButterflyRules {
+    /// Modified (default) or original.
+    pub variant: ButterflyVariant,
+}
 
 /// Zorin et al.'s weight `s_j` of the `j`-th ring vertex (counter-clockwise from the other
 /// end of the edge) for an extraordinary vertex of valence `k` (the vertex itself weighs
@@ -161,10 +178,13 @@ impl ButterflyRules {
     }
 
     /// The smooth mask of an edge between two faces (see the module docs).
-    fn smooth_mask(rings: &[EndRing; 2], num_faces: usize, m: &mut EdgeMask) {
+    fn smooth_mask(&self, rings: &[EndRing; 2], num_faces: usize, m: &mut EdgeMask) {
         m.clear_with_rings(num_faces, [rings[0].valence(), rings[1].valence()]);
         let virt = [VirtualRing::of(&rings[0]), VirtualRing::of(&rings[1])];
-        let regular = virt.map(|v| v.len() == 6);
+        let regular = match self.variant {
+            ButterflyVariant::Modified => virt.map(|v| v.len() == 6),
+            ButterflyVariant::Original => [true, true],
+        };
         if virt.iter().any(|v| v.len() < 3) {
             // Degenerate ring (not a manifold triangle mesh): the midpoint.
             m.ends = [0.5, 0.5];
@@ -172,14 +192,16 @@ impl ButterflyRules {
         }
         let mut ends = [0.0; 2];
         if regular == [true, true] {
+            // Opposite vertices one step, wings two steps from the edge (both ways).
             for k in 0..2 {
+                let n = virt[k].len();
                 ends[k] += 0.5;
                 if k == 0 {
                     virt[0].add(1, 0.125, &mut ends[0], &mut m.rings[0]);
-                    virt[0].add(5, 0.125, &mut ends[0], &mut m.rings[0]);
+                    virt[0].add(n - 1, 0.125, &mut ends[0], &mut m.rings[0]);
                 }
                 virt[k].add(2, -1.0 / 16.0, &mut ends[k], &mut m.rings[k]);
-                virt[k].add(4, -1.0 / 16.0, &mut ends[k], &mut m.rings[k]);
+                virt[k].add(n - 2, -1.0 / 16.0, &mut ends[k], &mut m.rings[k]);
             }
         } else {
             let c = if regular.contains(&true) { 1.0 } else { 0.5 };
@@ -201,7 +223,10 @@ impl ButterflyRules {
 
 impl Rules for ButterflyRules {
     fn name(&self) -> &'static str {
-        "butterfly"
+        match self.variant {
+            ButterflyVariant::Modified => "butterfly",
+            ButterflyVariant::Original => "butterfly-original",
+        }
     }
 
     fn split(&self) -> Split {
@@ -235,7 +260,7 @@ impl Rules for ButterflyRules {
             Self::crease_mask(rings, n.num_faces, mask);
             return;
         }
-        Self::smooth_mask(rings, n.num_faces, mask);
+        self.smooth_mask(rings, n.num_faces, mask);
         if s > 0.0 {
             Self::crease_mask(rings, n.num_faces, scratch);
             mask.blend(1.0 - s, scratch, s);
@@ -263,7 +288,7 @@ mod tests {
             num_faces: f,
         });
         let (mut m, mut s) = (EdgeMask::default(), EdgeMask::default());
-        ButterflyRules.edge_mask_with_rings(&n, &rings, &mut m, &mut s);
+        ButterflyRules::default().edge_mask_with_rings(&n, &rings, &mut m, &mut s);
         m
     }
 
@@ -362,10 +387,36 @@ mod tests {
     }
 
     #[test]
+    fn original_is_the_8_point_rule_at_any_valence() {
+        let r = ButterflyRules {
+            variant: ButterflyVariant::Original,
+        };
+        let z = [0.0; 7];
+        let n = EdgeNeighborhood {
+            sharpness: 0.0,
+            num_faces: 2,
+            face_arity: 3,
+            ends: [None, None],
+        };
+        let ring = |k: usize| EndRing {
+            sharpness: &z[..k],
+            vertex_sharpness: 0.0,
+            num_faces: k,
+        };
+        let (mut m, mut s) = (EdgeMask::default(), EdgeMask::default());
+        r.edge_mask_with_rings(&n, &[ring(5), ring(3)], &mut m, &mut s);
+        assert_eq!(m.ends, [0.5, 0.5]);
+        assert_eq!(m.rings[0], vec![0.0, 0.125, -0.0625, -0.0625, 0.125]);
+        // Valence 3: the wings two steps away are the opposite vertices.
+        assert_eq!(m.rings[1], vec![0.0, -0.0625, -0.0625]);
+        assert_eq!(m.sum(), 1.0);
+    }
+
+    #[test]
     fn vertices_stay() {
         let z = [0.0; 7];
         let (mut m, mut s) = (VertexMask::default(), VertexMask::default());
-        ButterflyRules.vertex_mask(&VertexNeighborhood::smooth(7, &z), &mut m, &mut s);
+        ButterflyRules::default().vertex_mask(&VertexNeighborhood::smooth(7, &z), &mut m, &mut s);
         assert_eq!(m.vertex, 1.0);
         assert_eq!(m.sum(), 1.0);
     }

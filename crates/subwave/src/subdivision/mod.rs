@@ -27,7 +27,7 @@ use crate::mesh::{EdgeTag, Mesh, VertexTag, SHARPNESS_INFINITE};
 use crate::topology::Topology;
 use crate::validate::{require_arity, require_manifold};
 use crate::{Error, Result};
-use butterfly::ButterflyRules;
+use butterfly::{ButterflyRules, ButterflyVariant};
 use catmull_clark::CatmullClarkRules;
 use loop_scheme::{LoopBoundary, LoopRules, LoopWeights};
 use midpoint::MidpointRules;
@@ -48,6 +48,8 @@ pub enum Scheme {
     Bilinear,
     /// Modified butterfly (triangles), interpolating, with crease tags.
     Butterfly,
+    /// The original 8-point butterfly everywhere (triangles; MeshLab's butterfly).
+    ButterflyOriginal,
 }
 
 impl Scheme {
@@ -59,6 +61,7 @@ impl Scheme {
             Scheme::CatmullClark => "catmull-clark",
             Scheme::Bilinear => "bilinear",
             Scheme::Butterfly => "butterfly",
+            Scheme::ButterflyOriginal => "butterfly-original",
         }
     }
 }
@@ -133,7 +136,10 @@ fn rules_for(opts: &SubdivideOptions, mesh: &Mesh) -> Box<dyn Rules> {
             split: Split::Polygons,
         }),
         Scheme::CatmullClark => Box::new(CatmullClarkRules),
-        Scheme::Butterfly => Box::new(ButterflyRules),
+        Scheme::Butterfly => Box::new(ButterflyRules::default()),
+        Scheme::ButterflyOriginal => Box::new(ButterflyRules {
+            variant: ButterflyVariant::Original,
+        }),
     }
 }
 
@@ -209,11 +215,11 @@ impl Refinement {
                 "use catmull-clark or bilinear (any polygons)",
             )?;
         }
-        if opts.scheme == Scheme::Butterfly {
+        if matches!(opts.scheme, Scheme::Butterfly | Scheme::ButterflyOriginal) {
             require_arity(
                 mesh,
                 3,
-                "butterfly",
+                opts.scheme.name(),
                 "triangles",
                 "use catmull-clark or bilinear (any polygons)",
             )?;

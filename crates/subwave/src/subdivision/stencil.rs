@@ -709,6 +709,7 @@ mod tests {
                         Scheme::Midpoint,
                         Scheme::CatmullClark,
                         Scheme::Butterfly,
+                        Scheme::ButterflyOriginal,
                     ]
                 } else {
                     &[Scheme::CatmullClark, Scheme::Bilinear]
