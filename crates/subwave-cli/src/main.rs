@@ -41,8 +41,9 @@ enum Command {
     /// Build the embedded default mesh (Bertram's five blobs), validate it and write it with
     /// its report into a folder.
     Demo(DemoArgs),
-    /// Subdivide a mesh: Loop, midpoint, Catmull-Clark or bilinear, with crease/dart/corner tags
-    /// from the file's `t crease` / `t corner` lines and from --sharp-angle.
+    /// Subdivide a mesh: Loop, midpoint, Catmull-Clark, bilinear or butterfly, with
+    /// crease/dart/corner tags from the file's `t crease` / `t corner` lines and from
+    /// --sharp-angle.
     Subdivide(SubdivideArgs),
     /// Metro-style symmetric surface distance between two meshes: RMS both ways, Hausdorff,
     /// PSNR = 20 log10(diagonal of A / larger RMS).

@@ -21,6 +21,10 @@ pub enum SchemeArg {
     CatmullClark,
     /// Bilinear (any polygons, split into quads).
     Bilinear,
+    /// Modified butterfly (triangles), interpolating, with crease/dart/corner tags.
+    Butterfly,
+    /// The original 8-point butterfly at every edge (triangles; MeshLab's butterfly).
+    ButterflyOriginal,
 }
 
 /// Boundary treatment on the command line.
@@ -62,6 +66,8 @@ pub fn scheme(arg: SchemeArg) -> Scheme {
         SchemeArg::Midpoint => Scheme::Midpoint,
         SchemeArg::CatmullClark => Scheme::CatmullClark,
         SchemeArg::Bilinear => Scheme::Bilinear,
+        SchemeArg::Butterfly => Scheme::Butterfly,
+        SchemeArg::ButterflyOriginal => Scheme::ButterflyOriginal,
     }
 }
 

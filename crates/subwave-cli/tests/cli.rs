@@ -801,3 +801,40 @@ fn distance_prints_the_documented_json() {
     let err = fails(&["distance", &pa, &empty.to_string_lossy()]);
     assert!(err.contains("no faces"), "{err}");
 }
+
+// ---------------------------------------------------------------------------------------------
+// subdivide --scheme butterfly
+
+#[test]
+fn subdivide_butterfly() {
+    let d = tmp();
+    let sphere = write(d.path(), "ico.obj", &generate::icosphere(1));
+    let out = d.path().join("out.obj");
+    let out = out.to_str().unwrap();
+    for scheme in ["butterfly", "butterfly-original"] {
+        let said = ok(&[
+            "subdivide",
+            &sphere,
+            "-o",
+            out,
+            "--scheme",
+            scheme,
+            "--levels",
+            "2",
+        ]);
+        assert!(said.contains(&format!("2 levels of {scheme}")), "{said}");
+        let j = info_json(out);
+        // 42 vertices, 120 edges, 80 faces -> 162, 480, 320 -> 642 vertices, 1280 faces.
+        assert_eq!(
+            (field(&j, "vertices"), field(&j, "faces")),
+            (642, 1280),
+            "{j}"
+        );
+    }
+    let quads = write(d.path(), "cube.obj", &generate::cube());
+    let err = fails(&["subdivide", &quads, "-o", out, "--scheme", "butterfly"]);
+    assert!(
+        err.contains("butterfly") && err.contains("catmull-clark"),
+        "{err}"
+    );
+}

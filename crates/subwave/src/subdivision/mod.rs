@@ -1,7 +1,7 @@
 //! Plain subdivision surfaces: scheme rules, a generic refiner and stencil tables.
 //!
 //! The layers follow OpenSubdiv:
-//! - **rules** ([`rules`], one file per scheme: [`loop_scheme`], [`catmull_clark`],
+//! - **rules** ([`rules`], one file per scheme: [`loop_scheme`], [`catmull_clark`], [`butterfly`],
 //!   [`midpoint`]): pure masks from a local neighbourhood (valence, sharpness, tags, sector);
 //! - **refinement** ([`refine`]): each child level's flat tables built directly from the
 //!   parent's, following the ordering contract documented there;
@@ -13,6 +13,7 @@
 //! boundary edges infinitely sharp, vertex rules smooth / dart / crease / corner from the
 //! number of sharp incident edges or a corner tag.
 
+pub mod butterfly;
 pub mod catmull_clark;
 pub mod face_varying;
 pub mod loop_scheme;
@@ -28,6 +29,7 @@ use crate::mesh::{EdgeTag, Mesh, VertexTag, SHARPNESS_INFINITE};
 use crate::topology::Topology;
 use crate::validate::{require_arity, require_manifold};
 use crate::{Error, Result};
+use butterfly::{ButterflyRules, ButterflyVariant};
 use catmull_clark::CatmullClarkRules;
 use loop_scheme::{LoopBoundary, LoopRules, LoopWeights};
 use midpoint::MidpointRules;
@@ -46,6 +48,10 @@ pub enum Scheme {
     CatmullClark,
     /// Bilinear (any polygons, 1-to-n quads, face points at centroids).
     Bilinear,
+    /// Modified butterfly (triangles), interpolating, with crease tags.
+    Butterfly,
+    /// The original 8-point butterfly everywhere (triangles; MeshLab's butterfly).
+    ButterflyOriginal,
 }
 
 impl Scheme {
@@ -56,6 +62,8 @@ impl Scheme {
             Scheme::Midpoint => "midpoint",
             Scheme::CatmullClark => "catmull-clark",
             Scheme::Bilinear => "bilinear",
+            Scheme::Butterfly => "butterfly",
+            Scheme::ButterflyOriginal => "butterfly-original",
         }
     }
 }
@@ -138,6 +146,10 @@ fn rules_for(opts: &SubdivideOptions, mesh: &Mesh) -> Box<dyn Rules> {
             split: Split::Polygons,
         }),
         Scheme::CatmullClark => Box::new(CatmullClarkRules),
+        Scheme::Butterfly => Box::new(ButterflyRules::default()),
+        Scheme::ButterflyOriginal => Box::new(ButterflyRules {
+            variant: ButterflyVariant::Original,
+        }),
     }
 }
 
@@ -244,7 +256,8 @@ impl Refinement {
             };
             let child = || {
                 if level + 1 < opts.levels {
-                    let (mut child, halves) = refine::refine_topology(&topo, split, false);
+                    let (mut child, halves) =
+                        refine::refine_topology(&topo, split, rules.needs_rings());
                     child_sharpness(&topo, &mut child, &halves, opts.creasing);
                     Next::Child(Box::new(child))
                 } else {
@@ -378,6 +391,15 @@ pub(crate) fn prepare(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Prepared> 
             mesh,
             3,
             "loop",
+            "triangles",
+            "use catmull-clark or bilinear (any polygons)",
+        )?;
+    }
+    if matches!(opts.scheme, Scheme::Butterfly | Scheme::ButterflyOriginal) {
+        require_arity(
+            mesh,
+            3,
+            opts.scheme.name(),
             "triangles",
             "use catmull-clark or bilinear (any polygons)",
         )?;

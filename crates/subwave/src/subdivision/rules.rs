@@ -245,6 +245,32 @@ impl VertexMask {
     }
 }
 
+/// One end of an edge seen through its ordered 1-ring (Maret §2.3 eq. 2.3, Algorithm 4),
+/// for rules that reach beyond the edge's faces (the butterfly, Maret §5.3.2 Fig. 5.5).
+///
+/// The ring is rotated to start at the edge itself: entry `j` is the `j`-th incident edge
+/// counter-clockwise from the edge, whose far end is the ring's `j`-th vertex (entry 0 is
+/// the edge, its far end the edge's other end). Consecutive entries share a face, except
+/// across the gap of a boundary vertex, which lies between its two boundary edges (both
+/// infinitely sharp, see the module documentation).
+#[derive(Clone, Copy, Debug)]
+pub struct EndRing<'a> {
+    /// Sharpness of the incident edges in rotated ring order (entry 0: the edge itself).
+    pub sharpness: &'a [f64],
+    /// Corner sharpness of the end vertex.
+    pub vertex_sharpness: f64,
+    /// Number of faces around the end (one less than the valence on a boundary).
+    pub num_faces: usize,
+}
+
+impl EndRing<'_> {
+    /// Number of incident edges (the valence).
+    #[inline]
+    pub fn valence(&self) -> usize {
+        self.sharpness.len()
+    }
+}
+
 /// An edge-point mask in local terms (see the module documentation).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct EdgeMask {
@@ -252,14 +278,26 @@ pub struct EdgeMask {
     pub ends: [f64; 2],
     /// Weight of each incident face's opposite vertex (triangles) or centroid (polygons).
     pub faces: Vec<f64>,
+    /// Weights over each end's ordered 1-ring, rotated to start at the other end (see
+    /// [`EndRing`]); empty unless the scheme asks for rings ([`Rules::needs_rings`]).
+    pub rings: [Vec<f64>; 2],
 }
 
 impl EdgeMask {
-    /// Resets to zero weights for `faces` faces.
+    /// Resets to zero weights for `faces` faces (and no ring weights).
     pub fn clear(&mut self, faces: usize) {
         self.ends = [0.0; 2];
         self.faces.clear();
         self.faces.resize(faces, 0.0);
+        self.rings[0].clear();
+        self.rings[1].clear();
+    }
+
+    /// Resets to zero weights for `faces` faces and rings of the given valences.
+    pub fn clear_with_rings(&mut self, faces: usize, valences: [usize; 2]) {
+        self.clear(faces);
+        self.rings[0].resize(valences[0], 0.0);
+        self.rings[1].resize(valences[1], 0.0);
     }
 
     /// The crease rule: the midpoint.
@@ -277,11 +315,20 @@ impl EdgeMask {
         for (x, y) in self.faces.iter_mut().zip(&other.faces) {
             *x = a * *x + b * *y;
         }
+        for (r, o) in self.rings.iter_mut().zip(&other.rings) {
+            for (x, y) in r.iter_mut().zip(o) {
+                *x = a * *x + b * *y;
+            }
+        }
     }
 
     /// Sum of all weights.
     pub fn sum(&self) -> f64 {
-        self.ends[0] + self.ends[1] + self.faces.iter().sum::<f64>()
+        self.ends[0]
+            + self.ends[1]
+            + self.faces.iter().sum::<f64>()
+            + self.rings[0].iter().sum::<f64>()
+            + self.rings[1].iter().sum::<f64>()
     }
 }
 
@@ -299,6 +346,24 @@ pub trait Rules: Sync {
     fn vertex_mask(&self, n: &VertexNeighborhood, mask: &mut VertexMask, scratch: &mut VertexMask);
     /// The mask of the edge point of a parent edge.
     fn edge_mask(&self, n: &EdgeNeighborhood, mask: &mut EdgeMask, scratch: &mut EdgeMask);
+    /// Whether edge masks need the ends' ordered 1-rings ([`Rules::edge_mask_with_rings`]);
+    /// the refiner then orders the rings of every level.
+    fn needs_rings(&self) -> bool {
+        false
+    }
+    /// The mask of the edge point of a parent edge, seeing the ordered 1-rings of its ends
+    /// (`rings[i]` for `ends[i]`); may fill [`EdgeMask::rings`]. Called instead of
+    /// [`Rules::edge_mask`] when [`Rules::needs_rings`]; by default the same.
+    fn edge_mask_with_rings(
+        &self,
+        n: &EdgeNeighborhood,
+        rings: &[EndRing; 2],
+        mask: &mut EdgeMask,
+        scratch: &mut EdgeMask,
+    ) {
+        let _ = rings;
+        self.edge_mask(n, mask, scratch);
+    }
 }
 
 /// Applies OpenSubdiv's semi-sharp vertex transition: computes the parent rule's mask with

@@ -16,8 +16,8 @@ use rayon::prelude::*;
 
 use super::refine::Split;
 use super::rules::{
-    child_edge_sharpness, decrement, Creasing, EdgeMask, EdgeNeighborhood, Rule, Rules, Sector,
-    VertexMask, VertexNeighborhood,
+    child_edge_sharpness, decrement, Creasing, EdgeMask, EdgeNeighborhood, EndRing, Rule, Rules,
+    Sector, VertexMask, VertexNeighborhood,
 };
 use crate::topology::Topology;
 
@@ -323,6 +323,9 @@ struct Scratch {
     es: EdgeMask,
     sharp: Vec<f64>,
     child_sharp: Vec<f64>,
+    /// Per edge end (rules that need rings): rotated ring sharpness and ring vertices.
+    ring_sharp: [Vec<f64>; 2],
+    ring_verts: [Vec<u32>; 2],
 }
 
 /// One level's stencil generator: the single place that turns masks into (index, weight)
@@ -334,6 +337,7 @@ struct Level<'a> {
     cache: MaskCache,
     split: Split,
     needs_sectors: bool,
+    needs_rings: bool,
     /// Per vertex: the number of incident edges with nonzero sharpness (saturating), or 255
     /// if the vertex has nonzero corner sharpness; 0 means the vertex is smooth.
     features: Vec<u8>,
@@ -373,6 +377,7 @@ impl<'a> Level<'a> {
             cache: MaskCache::new(ctx.rules),
             split,
             needs_sectors: ctx.rules.needs_sectors(),
+            needs_rings: ctx.rules.needs_rings(),
             nv,
             ne,
             n_child,
@@ -442,6 +447,10 @@ impl<'a> Level<'a> {
             let face_arity = faces
                 .first()
                 .map_or(0, |&f| topo.face_vertices(f as usize).len());
+            if self.needs_rings {
+                self.ring_edge_stencil(e, s);
+                return;
+            }
             let cached = sharpness == 0.0
                 && faces.len() == 2
                 && face_arity < CACHED_ARITY
@@ -501,6 +510,70 @@ impl<'a> Level<'a> {
             let wf = 1.0 / fv.len() as f64;
             for &v in fv {
                 s.b.add_new(v, wf);
+            }
+        }
+    }
+}
+
+impl Level<'_> {
+    /// The stencil of the edge point of `e` for rules that see the ends' ordered 1-rings
+    /// ([`Rules::needs_rings`]): ends, opposite vertices, then each end's ring weights.
+    fn ring_edge_stencil(&self, e: usize, s: &mut Scratch) {
+        let topo = self.topo;
+        debug_assert!(topo.rings_ordered, "rules need ordered 1-rings");
+        let ends = topo.edge_vertices[e];
+        let faces = topo.edge_faces(e);
+        for (k, &v) in ends.iter().enumerate() {
+            let edges = topo.vertex_edges(v as usize);
+            let at = edges.iter().position(|&x| x as usize == e).unwrap_or(0);
+            let n = edges.len();
+            s.ring_sharp[k].clear();
+            s.ring_verts[k].clear();
+            for j in 0..n {
+                let x = edges[(at + j) % n] as usize;
+                s.ring_sharp[k].push(topo.edge_sharpness[x]);
+                s.ring_verts[k].push(topo.other_vertex(x, v));
+            }
+        }
+        let n = EdgeNeighborhood {
+            sharpness: topo.edge_sharpness[e],
+            num_faces: faces.len(),
+            face_arity: faces
+                .first()
+                .map_or(0, |&f| topo.face_vertices(f as usize).len()),
+            ends: [None, None],
+            child_sharpness: [decrement(topo.edge_sharpness[e]); 2],
+        };
+        let rings = [0, 1].map(|k| EndRing {
+            sharpness: &s.ring_sharp[k],
+            vertex_sharpness: topo.vertex_sharpness[ends[k] as usize],
+            num_faces: topo.vertex_faces(ends[k] as usize).len(),
+        });
+        self.ctx
+            .rules
+            .edge_mask_with_rings(&n, &rings, &mut s.em, &mut s.es);
+        let m = &s.em;
+        s.b.add_new(ends[0], m.ends[0]);
+        s.b.add_new(ends[1], m.ends[1]);
+        for (i, &f) in faces.iter().enumerate() {
+            let w = m.faces.get(i).copied().unwrap_or(0.0);
+            match self.split {
+                Split::Triangles => {
+                    let opp = topo
+                        .face_vertices(f as usize)
+                        .iter()
+                        .copied()
+                        .find(|&x| x != ends[0] && x != ends[1]);
+                    if let Some(o) = opp {
+                        s.b.add(o, w);
+                    }
+                }
+                Split::Polygons => s.b.add_centroid(topo, f as usize, w),
+            }
+        }
+        for k in 0..2 {
+            for (&v, &w) in s.ring_verts[k].iter().zip(&m.rings[k]) {
+                s.b.add(v, w);
             }
         }
     }
@@ -647,7 +720,13 @@ mod tests {
                     tagged(m.clone(), seed + k as u64)
                 };
                 let schemes: &[Scheme] = if m.is_triangle_mesh() {
-                    &[Scheme::Loop, Scheme::Midpoint, Scheme::CatmullClark]
+                    &[
+                        Scheme::Loop,
+                        Scheme::Midpoint,
+                        Scheme::CatmullClark,
+                        Scheme::Butterfly,
+                        Scheme::ButterflyOriginal,
+                    ]
                 } else {
                     &[Scheme::CatmullClark, Scheme::Bilinear]
                 };
