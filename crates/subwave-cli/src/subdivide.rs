@@ -20,6 +20,9 @@ pub enum SchemeArg {
     CatmullClark,
     /// Bilinear (any polygons, split into quads).
     Bilinear,
+    /// Kobbelt's sqrt(3) (triangles): faces triple per level, boundaries trisected every
+    /// second level.
+    Sqrt3,
 }
 
 /// Boundary treatment on the command line.
@@ -68,6 +71,7 @@ pub fn run(args: &SubdivideArgs) -> Result<()> {
             SchemeArg::Midpoint => Scheme::Midpoint,
             SchemeArg::CatmullClark => Scheme::CatmullClark,
             SchemeArg::Bilinear => Scheme::Bilinear,
+            SchemeArg::Sqrt3 => Scheme::Sqrt3,
         },
         levels: args.levels,
         boundary: match args.boundary {

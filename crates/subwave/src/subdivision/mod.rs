@@ -2,7 +2,7 @@
 //!
 //! The layers follow OpenSubdiv:
 //! - **rules** ([`rules`], one file per scheme: [`loop_scheme`], [`catmull_clark`],
-//!   [`midpoint`]): pure masks from a local neighbourhood (valence, sharpness, tags, sector);
+//!   [`midpoint`]; [`sqrt3`] has its own 1-to-3 split, flips and stencils): pure masks from a local neighbourhood (valence, sharpness, tags, sector);
 //! - **refinement** ([`refine`]): each child level's flat tables built directly from the
 //!   parent's, following the ordering contract documented there;
 //! - **stencils** ([`stencil`]): each level's child vertices as weighted sums of parent
@@ -18,6 +18,7 @@ pub mod loop_scheme;
 pub mod midpoint;
 pub mod refine;
 pub mod rules;
+pub mod sqrt3;
 pub mod stencil;
 
 use glam::DVec3;
@@ -44,6 +45,9 @@ pub enum Scheme {
     CatmullClark,
     /// Bilinear (any polygons, 1-to-n quads, face points at centroids).
     Bilinear,
+    /// Kobbelt's √3 (triangles): 1-to-3 split, relaxation, edge flips; boundaries trisected
+    /// every second step ([`sqrt3`]).
+    Sqrt3,
 }
 
 impl Scheme {
@@ -54,6 +58,7 @@ impl Scheme {
             Scheme::Midpoint => "midpoint",
             Scheme::CatmullClark => "catmull-clark",
             Scheme::Bilinear => "bilinear",
+            Scheme::Sqrt3 => "sqrt3",
         }
     }
 }
@@ -128,6 +133,8 @@ fn rules_for(opts: &SubdivideOptions, mesh: &Mesh) -> Box<dyn Rules> {
             split: Split::Polygons,
         }),
         Scheme::CatmullClark => Box::new(CatmullClarkRules),
+        // √3 has its own split and stencils: `Refinement::build_with` hands it to `sqrt3`.
+        Scheme::Sqrt3 => unreachable!("sqrt3 is refined by subdivision::sqrt3"),
     }
 }
 
@@ -194,6 +201,9 @@ impl Refinement {
         keep_topologies: bool,
     ) -> Result<Refinement> {
         mesh.check_indices()?;
+        if opts.scheme == Scheme::Sqrt3 {
+            return sqrt3::build(mesh, opts, keep_stencils, keep_topologies);
+        }
         if opts.scheme == Scheme::Loop {
             require_arity(
                 mesh,
