@@ -36,6 +36,10 @@
 //! `(2 p_0 + p_1)/3`. A dart (one sharp edge) takes the smooth rule; the point next to it on
 //! its sharp edge uses the same end rule.
 //!
+//! Of [`SubdivideOptions`], √3 uses `levels`, `sharp_angle` and `boundary` (only
+//! [`BoundaryMode::OpenSubdivCorners`] differs: its corners); `creasing` and `loop_weights` do
+//! not apply. Step `k` (0-based) of a refinement has phase [`Phase::of_level`]`(k)`.
+//!
 //! # Ordering contract
 //! Child vertices: the parent's `V` vertices keep their indices; then one centroid per split
 //! face, in face order (`V + f` for every face in a [`Phase::Keep`] step — the uniform closed
@@ -115,7 +119,7 @@ pub enum Phase {
 impl Phase {
     /// The phase of step `level` (0-based) of a refinement.
     pub fn of_level(level: u32) -> Phase {
-        if level % 2 == 0 {
+        if level.is_multiple_of(2) {
             Phase::Keep
         } else {
             Phase::Trisect
@@ -348,7 +352,7 @@ impl<'a> Sqrt3Level<'a> {
             let k = j - nv - nc;
             let e = self.trisected[k / 2];
             let ev = topo.edge_vertices[e as usize];
-            let (a, b) = if k % 2 == 0 {
+            let (a, b) = if k.is_multiple_of(2) {
                 (ev[0], ev[1])
             } else {
                 (ev[1], ev[0])
