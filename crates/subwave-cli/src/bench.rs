@@ -45,18 +45,20 @@ pub fn subdivide(args: &BenchSubdivideArgs) -> Result<()> {
             p.runs
         )?;
         let mut t = print::Table::new();
-        t.row("topology", format!("{:.1} ms", p.topology_ms))
-            .row("positions", format!("{:.1} ms", p.positions_ms))
+        let ms = |x: Option<f64>| x.map_or("n/a".to_string(), |x| format!("{x:.1} ms"));
+        t.row("topology", ms(p.topology_ms))
+            .row("positions", ms(p.positions_ms))
             .row("total", format!("{:.1} ms", p.total_ms))
             .row("peak memory", mb(p.peak_rss_mb))
             .row(
                 "stencils",
                 format!(
-                    "{:.1} ms to build, {:.0} MiB",
-                    p.stencil_build_ms, p.stencil_mb
+                    "{} to build, {:.0} MiB",
+                    ms(p.stencil_build_ms),
+                    p.stencil_mb
                 ),
             )
-            .row("re-evaluation", format!("{:.1} ms", p.reevaluate_ms))
+            .row("re-evaluation", ms(p.reevaluate_ms))
             .row("peak with stencils", mb(p.peak_rss_reevaluate_mb));
         t.write(&mut out, "  ")?;
     }

@@ -25,6 +25,10 @@ pub enum SchemeArg {
     Butterfly,
     /// The original 8-point butterfly at every edge (triangles; MeshLab's butterfly).
     ButterflyOriginal,
+
+    /// Kobbelt's sqrt(3) (triangles): faces triple per level, boundaries trisected every
+    /// second level.
+    Sqrt3,
 }
 
 /// Boundary treatment on the command line.
@@ -68,6 +72,7 @@ pub fn scheme(arg: SchemeArg) -> Scheme {
         SchemeArg::Bilinear => Scheme::Bilinear,
         SchemeArg::Butterfly => Scheme::Butterfly,
         SchemeArg::ButterflyOriginal => Scheme::ButterflyOriginal,
+        SchemeArg::Sqrt3 => Scheme::Sqrt3,
     }
 }
 

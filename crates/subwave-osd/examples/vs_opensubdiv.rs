@@ -107,18 +107,28 @@ fn main() {
             a / b
         );
     };
-    row("topology", p.topology_ms, osd_topology, "ms");
-    row("positions", p.positions_ms, osd_positions, "ms");
+    row(
+        "topology",
+        p.topology_ms.unwrap_or(f64::NAN),
+        osd_topology,
+        "ms",
+    );
+    row(
+        "positions",
+        p.positions_ms.unwrap_or(f64::NAN),
+        osd_positions,
+        "ms",
+    );
     row("total", p.total_ms, osd_total, "ms");
     row(
         "re-evaluation vs OSD positions",
-        p.reevaluate_ms,
+        p.reevaluate_ms.unwrap_or(f64::NAN),
         osd_positions,
         "ms",
     );
     row(
         "re-evaluation vs OSD stencil eval",
-        p.reevaluate_ms,
+        p.reevaluate_ms.unwrap_or(f64::NAN),
         osd_eval,
         "ms",
     );
@@ -130,7 +140,7 @@ fn main() {
     );
     println!(
         "subwave stencils: {:.1} ms to build, {:.0} MiB; peak with stencils {:.0} MiB",
-        p.stencil_build_ms,
+        p.stencil_build_ms.unwrap_or(f64::NAN),
         p.stencil_mb,
         p.peak_rss_reevaluate_mb.unwrap_or(f64::NAN)
     );

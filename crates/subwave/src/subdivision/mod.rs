@@ -1,8 +1,9 @@
 //! Plain subdivision surfaces: scheme rules, a generic refiner and stencil tables.
 //!
 //! The layers follow OpenSubdiv:
-//! - **rules** ([`rules`], one file per scheme: [`loop_scheme`], [`catmull_clark`], [`butterfly`],
-//!   [`midpoint`]): pure masks from a local neighbourhood (valence, sharpness, tags, sector);
+//! - **rules** ([`rules`], one file per scheme: [`loop_scheme`], [`catmull_clark`],
+//!   [`butterfly`], [`midpoint`]; [`sqrt3`] has its own 1-to-3 split, flips and stencils):
+//!   pure masks from a local neighbourhood (valence, sharpness, tags, sector);
 //! - **refinement** ([`refine`]): each child level's flat tables built directly from the
 //!   parent's, following the ordering contract documented there;
 //! - **stencils** ([`stencil`]): each level's child vertices as weighted sums of parent
@@ -21,6 +22,7 @@ pub mod midpoint;
 pub mod profile;
 pub mod refine;
 pub mod rules;
+pub mod sqrt3;
 pub mod stencil;
 
 use glam::DVec3;
@@ -52,6 +54,10 @@ pub enum Scheme {
     Butterfly,
     /// The original 8-point butterfly everywhere (triangles; MeshLab's butterfly).
     ButterflyOriginal,
+
+    /// Kobbelt's √3 (triangles): 1-to-3 split, relaxation, edge flips; boundaries trisected
+    /// every second step ([`sqrt3`]).
+    Sqrt3,
 }
 
 impl Scheme {
@@ -64,6 +70,8 @@ impl Scheme {
             Scheme::Bilinear => "bilinear",
             Scheme::Butterfly => "butterfly",
             Scheme::ButterflyOriginal => "butterfly-original",
+
+            Scheme::Sqrt3 => "sqrt3",
         }
     }
 }
@@ -150,6 +158,9 @@ fn rules_for(opts: &SubdivideOptions, mesh: &Mesh) -> Box<dyn Rules> {
         Scheme::ButterflyOriginal => Box::new(ButterflyRules {
             variant: ButterflyVariant::Original,
         }),
+
+        // √3 has its own split and stencils: `Refinement::build_with` hands it to `sqrt3`.
+        Scheme::Sqrt3 => unreachable!("sqrt3 is refined by subdivision::sqrt3"),
     }
 }
 
@@ -195,8 +206,9 @@ pub struct Refinement {
     pub base_holes: Vec<u32>,
     /// Number of levels refined.
     pub levels: u32,
-    /// How faces were split at each level.
-    pub split: Split,
+    /// How faces were split at each level; `None` for √3 ([`sqrt3`]: children `3f..3f+2`
+    /// of face `f`, so `3^L` consecutive descendants per base face).
+    pub split: Option<Split>,
 }
 
 impl Refinement {
@@ -221,6 +233,10 @@ impl Refinement {
         keep_stencils: bool,
         keep_topologies: bool,
     ) -> Result<Refinement> {
+        if opts.scheme == Scheme::Sqrt3 {
+            mesh.check_indices()?;
+            return sqrt3::build(mesh, opts, keep_stencils, keep_topologies);
+        }
         let Prepared {
             rules,
             split,
@@ -301,7 +317,7 @@ impl Refinement {
             vertex_tags,
             base_holes,
             levels: opts.levels,
-            split,
+            split: Some(split),
         })
     }
 
@@ -312,11 +328,15 @@ impl Refinement {
         let f = face as usize;
         match (self.levels, self.split) {
             (0, _) => f..f + 1,
-            (l, Split::Triangles) => {
+            (l, None) => {
+                let n = 3usize.pow(l);
+                f * n..(f + 1) * n
+            }
+            (l, Some(Split::Triangles)) => {
                 let n = 4usize.pow(l);
                 f * n..(f + 1) * n
             }
-            (l, Split::Polygons) => {
+            (l, Some(Split::Polygons)) => {
                 let n = 4usize.pow(l - 1);
                 base.face_offsets[f] as usize * n..base.face_offsets[f + 1] as usize * n
             }
@@ -587,12 +607,19 @@ pub fn subdivide(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Mesh> {
     out.edge_tags = r.edge_tags;
     out.vertex_tags = r.vertex_tags;
     if let Some(fv) = &mesh.face_uvs {
-        out.face_uvs = Some(face_varying::refine_linear(
-            fv,
-            &mesh.face_offsets,
-            r.split,
-            r.levels,
-        ));
+        if let Some(split) = r.split {
+            out.face_uvs = Some(face_varying::refine_linear(
+                fv,
+                &mesh.face_offsets,
+                split,
+                r.levels,
+            ));
+        } else {
+            tracing::warn!(
+                "{}: face-varying texture coordinates are not refined by this scheme; dropped",
+                opts.scheme.name()
+            );
+        }
     }
     if !holes.is_empty() {
         drop_faces(&mut out, &holes);

@@ -27,16 +27,18 @@ use crate::Result;
 /// Medians of `runs` runs of each phase, in milliseconds, and the sizes of the result.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct SubdivideProfile {
-    /// Topology of every level (tables, sharpness, finest faces and tags).
-    pub topology_ms: f64,
-    /// Positions of every level from the prepared topologies.
-    pub positions_ms: f64,
+    /// Topology of every level (tables, sharpness, finest faces and tags); `None` for schemes
+    /// whose refinement does not separate the two (√3).
+    pub topology_ms: Option<f64>,
+    /// Positions of every level from the prepared topologies; `None` as `topology_ms`.
+    pub positions_ms: Option<f64>,
     /// [`subdivide`] end to end, topology and positions overlapped.
     pub total_ms: f64,
-    /// Re-evaluation of the finest positions with cached stencil tables.
-    pub reevaluate_ms: f64,
+    /// Re-evaluation of the finest positions with cached stencil tables; `None` for schemes
+    /// without stencil tables (Bertram's B-splines, evaluated by lifting).
+    pub reevaluate_ms: Option<f64>,
     /// Building the refinement with its stencil tables (once, not a median).
-    pub stencil_build_ms: f64,
+    pub stencil_build_ms: Option<f64>,
     /// Peak resident memory of [`subdivide`], MiB (`None` off Linux).
     pub peak_rss_mb: Option<f64>,
     /// Peak resident memory while the stencil tables are built and applied, MiB.
@@ -74,41 +76,50 @@ pub fn profile_subdivide(
     let (vertices, faces) = (fine.num_vertices(), fine.num_faces());
     drop(fine);
 
+    let separable = rules_apply(opts.scheme);
     let mut topologies = Vec::new();
-    let topology_ms = median(runs, || {
-        topologies.clear();
-        let t = Instant::now();
-        topologies = topology_levels(mesh, opts);
-        t.elapsed()
+    let topology_ms = separable.then(|| {
+        median(runs, || {
+            topologies.clear();
+            let t = Instant::now();
+            topologies = topology_levels(mesh, opts);
+            t.elapsed()
+        })
     });
-    let prepared = prepare(mesh, opts)?;
-    let positions_ms = median(runs, || {
-        let t = Instant::now();
-        let mut p: Vec<DVec3> = mesh.positions.clone();
-        for topo in &topologies {
-            let ctx = LevelContext {
-                rules: prepared.rules.as_ref(),
-                creasing: opts.creasing,
-                positions: &p,
-            };
-            p = stencil::level_apply(topo, &ctx, &p);
-        }
-        std::hint::black_box(&p);
-        t.elapsed()
-    });
+    let positions_ms = if separable {
+        let prepared = prepare(mesh, opts)?;
+        Some(median(runs, || {
+            let t = Instant::now();
+            let mut p: Vec<DVec3> = mesh.positions.clone();
+            for topo in &topologies {
+                let ctx = LevelContext {
+                    rules: prepared.rules.as_ref(),
+                    creasing: opts.creasing,
+                    positions: &p,
+                };
+                p = stencil::level_apply(topo, &ctx, &p);
+            }
+            std::hint::black_box(&p);
+            t.elapsed()
+        }))
+    } else {
+        None
+    };
     drop(topologies);
 
     reset_peak_rss();
     let t = Instant::now();
-    let r = Refinement::build(mesh, opts, true)?;
-    let stencil_build_ms = t.elapsed().as_secs_f64() * 1e3;
-    let stencil_mb =
-        r.stencils.iter().map(|s| s.memory_bytes()).sum::<usize>() as f64 / (1 << 20) as f64;
-    let reevaluate_ms = median(runs, || {
-        let t = Instant::now();
-        std::hint::black_box(r.evaluate(&mesh.positions).expect("stencils kept"));
-        t.elapsed()
-    });
+    let (mut stencil_build_ms, mut reevaluate_ms, mut stencil_mb) = (None, None, 0.0);
+    if let Ok(r) = Refinement::build(mesh, opts, true) {
+        stencil_build_ms = Some(t.elapsed().as_secs_f64() * 1e3);
+        stencil_mb =
+            r.stencils.iter().map(|s| s.memory_bytes()).sum::<usize>() as f64 / (1 << 20) as f64;
+        reevaluate_ms = Some(median(runs, || {
+            let t = Instant::now();
+            std::hint::black_box(r.evaluate(&mesh.positions).expect("stencils kept"));
+            t.elapsed()
+        }));
+    }
     let peak_rss_reevaluate_mb = peak_rss_mb();
     Ok(SubdivideProfile {
         topology_ms,
@@ -123,6 +134,11 @@ pub fn profile_subdivide(
         faces,
         runs,
     })
+}
+
+/// True if the scheme refines through [`prepare`]'s rules (topology and positions apart).
+fn rules_apply(scheme: super::Scheme) -> bool {
+    !matches!(scheme, super::Scheme::Sqrt3)
 }
 
 /// The topology phase: level-0 preparation, then every level's child tables and sharpness
@@ -193,7 +209,8 @@ mod tests {
                 (p.vertices, p.faces),
                 (fine.num_vertices(), fine.num_faces())
             );
-            assert!(p.total_ms > 0.0 && p.topology_ms > 0.0 && p.positions_ms > 0.0);
+            assert!(p.total_ms > 0.0 && p.topology_ms > Some(0.0) && p.positions_ms > Some(0.0));
+            assert!(p.reevaluate_ms.is_some());
             assert!(p.stencil_mb > 0.0);
             if cfg!(target_os = "linux") {
                 assert!(p.peak_rss_mb.unwrap() > 1.0);

@@ -19,6 +19,10 @@
 //!   (v_i, m_i, c, m_{i-1})`, `offset_k` being the number of corners of the faces before `k`
 //!   (so the children of quad `k` of a quad mesh are `4k..4k+3`). This is OpenSubdiv's order.
 //! - **Edges** of the child level: order of first appearance in the child face list.
+//! - **√3 split** (not a [`Split`]: [`super::sqrt3`] refines itself): parent vertices keep
+//!   their indices, then one centroid per split face in face order (`V + f` on closed meshes),
+//!   then two trisection points per sharp edge on trisection steps; children `3f..3f+2` of
+//!   face `f` lie along its edges `v_i v_{i+1}`, see [`super::sqrt3`]'s ordering contract.
 
 use rayon::prelude::*;
 
