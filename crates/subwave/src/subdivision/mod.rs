@@ -2,7 +2,7 @@
 //!
 //! The layers follow OpenSubdiv:
 //! - **rules** ([`rules`], one file per scheme: [`loop_scheme`], [`catmull_clark`],
-//!   [`midpoint`]): pure masks from a local neighbourhood (valence, sharpness, tags, sector);
+//!   [`midpoint`], [`quad_tri`]): pure masks from a local neighbourhood (valence, sharpness, tags, sector);
 //! - **refinement** ([`refine`]): each child level's flat tables built directly from the
 //!   parent's, following the ordering contract documented there;
 //! - **stencils** ([`stencil`]): each level's child vertices as weighted sums of parent
@@ -14,8 +14,10 @@
 //! number of sharp incident edges or a corner tag.
 
 pub mod catmull_clark;
+pub mod curves;
 pub mod loop_scheme;
 pub mod midpoint;
+pub mod quad_tri;
 pub mod refine;
 pub mod rules;
 pub mod stencil;
@@ -44,6 +46,9 @@ pub enum Scheme {
     CatmullClark,
     /// Bilinear (any polygons, 1-to-n quads, face points at centroids).
     Bilinear,
+    /// Quad/triangle subdivision of Stam & Loop 2003 (triangles and quads; Loop on triangle
+    /// regions, Catmull-Clark on quad regions), sharp and semi-sharp creases.
+    QuadTri,
 }
 
 impl Scheme {
@@ -54,6 +59,7 @@ impl Scheme {
             Scheme::Midpoint => "midpoint",
             Scheme::CatmullClark => "catmull-clark",
             Scheme::Bilinear => "bilinear",
+            Scheme::QuadTri => "quad-tri",
         }
     }
 }
@@ -128,6 +134,9 @@ fn rules_for(opts: &SubdivideOptions, mesh: &Mesh) -> Box<dyn Rules> {
             split: Split::Polygons,
         }),
         Scheme::CatmullClark => Box::new(CatmullClarkRules),
+        Scheme::QuadTri => Box::new(quad_tri::QuadTriRules {
+            weights: opts.loop_weights,
+        }),
     }
 }
 
@@ -203,11 +212,16 @@ impl Refinement {
                 "use catmull-clark or bilinear (any polygons)",
             )?;
         }
+        if opts.scheme == Scheme::QuadTri {
+            quad_tri::require_triangles_and_quads(mesh)?;
+        }
         let rules = rules_for(opts, mesh);
         let split = rules.split();
         let corners = mesh.face_indices.len() as u64;
         let faces_out = match split {
-            Split::Triangles => mesh.num_faces() as u64 * 4u64.saturating_pow(opts.levels),
+            Split::Triangles | Split::QuadTri => {
+                mesh.num_faces() as u64 * 4u64.saturating_pow(opts.levels)
+            }
             Split::Polygons => {
                 corners.saturating_mul(4u64.saturating_pow(opts.levels.saturating_sub(1)))
             }

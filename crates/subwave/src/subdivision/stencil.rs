@@ -322,6 +322,7 @@ struct Scratch {
     es: EdgeMask,
     sharp: Vec<f64>,
     child_sharp: Vec<f64>,
+    arities: Vec<u32>,
 }
 
 /// One level's stencil generator: the single place that turns masks into (index, weight)
@@ -332,6 +333,8 @@ struct Level<'a> {
     ctx: &'a LevelContext<'a>,
     cache: MaskCache,
     split: Split,
+    /// [`Split::QuadTri`]: the parent quads, whose face points follow the edge points.
+    quads: Vec<u32>,
     needs_sectors: bool,
     /// Per vertex: the number of incident edges with nonzero sharpness (saturating), or 255
     /// if the vertex has nonzero corner sharpness; 0 means the vertex is smooth.
@@ -346,13 +349,14 @@ impl<'a> Level<'a> {
         let nv = topo.num_vertices as usize;
         let ne = topo.num_edges();
         let split = ctx.rules.split();
-        let n_child = nv
-            + ne
-            + if split == Split::Polygons {
-                topo.num_faces()
-            } else {
-                0
-            };
+        let n_child = super::refine::child_vertex_count(topo, split);
+        let quads = if split == Split::QuadTri {
+            (0..topo.num_faces() as u32)
+                .filter(|&f| topo.face_vertices(f as usize).len() == 4)
+                .collect()
+        } else {
+            Vec::new()
+        };
         let mut features: Vec<u8> = topo
             .vertex_sharpness
             .iter()
@@ -367,6 +371,7 @@ impl<'a> Level<'a> {
         }
         Level {
             topo,
+            quads,
             features,
             ctx,
             cache: MaskCache::new(ctx.rules),
@@ -400,8 +405,11 @@ impl<'a> Level<'a> {
                 return;
             }
             let vsharp = topo.vertex_sharpness[v];
-            let smooth =
-                self.features[v] == 0 && edges.len() == faces.len() && edges.len() < CACHED_VALENCE;
+            let mixed = self.split == Split::QuadTri;
+            let smooth = self.features[v] == 0
+                && edges.len() == faces.len()
+                && edges.len() < CACHED_VALENCE
+                && !mixed;
             let mask = if smooth {
                 &self.cache.smooth_vertex[edges.len()]
             } else {
@@ -421,7 +429,19 @@ impl<'a> Level<'a> {
                     child_edge_sharpness: &s.child_sharp,
                     child_vertex_sharpness: decrement(vsharp),
                 };
-                self.ctx.rules.vertex_mask(&n, &mut s.vm, &mut s.vs);
+                if mixed {
+                    s.arities.clear();
+                    s.arities.extend(
+                        faces
+                            .iter()
+                            .map(|&f| topo.face_vertices(f as usize).len() as u32),
+                    );
+                    self.ctx
+                        .rules
+                        .vertex_mask_with_arities(&n, &s.arities, &mut s.vm, &mut s.vs);
+                } else {
+                    self.ctx.rules.vertex_mask(&n, &mut s.vm, &mut s.vs);
+                }
                 &s.vm
             };
             // The vertex and its neighbours are distinct (no two edges join the same vertices);
@@ -441,7 +461,9 @@ impl<'a> Level<'a> {
             let face_arity = faces
                 .first()
                 .map_or(0, |&f| topo.face_vertices(f as usize).len());
+            let mixed = self.split == Split::QuadTri;
             let cached = sharpness == 0.0
+                && !mixed
                 && faces.len() == 2
                 && face_arity < CACHED_ARITY
                 && (!self.needs_sectors || self.no_sector(a) && self.no_sector(b));
@@ -460,29 +482,51 @@ impl<'a> Level<'a> {
                     face_arity,
                     ends,
                 };
-                self.ctx.rules.edge_mask(&n, &mut s.em, &mut s.es);
+                if mixed {
+                    s.arities.clear();
+                    s.arities.extend(
+                        faces
+                            .iter()
+                            .map(|&f| topo.face_vertices(f as usize).len() as u32),
+                    );
+                    self.ctx
+                        .rules
+                        .edge_mask_with_arities(&n, &s.arities, &mut s.em, &mut s.es);
+                } else {
+                    self.ctx.rules.edge_mask(&n, &mut s.em, &mut s.es);
+                }
                 &s.em
             };
             s.b.add_new(a, mask.ends[0]);
             s.b.add_new(b, mask.ends[1]);
             for (i, &f) in faces.iter().enumerate() {
-                match self.split {
-                    Split::Triangles => {
-                        let opp = topo
-                            .face_vertices(f as usize)
-                            .iter()
-                            .copied()
-                            .find(|&x| x != a && x != b);
-                        if let Some(o) = opp {
-                            s.b.add(o, mask.faces[i]);
-                        }
+                // Triangles weigh their vertex opposite the edge, polygons their centroid.
+                let opposite = match self.split {
+                    Split::Triangles => true,
+                    Split::Polygons => false,
+                    Split::QuadTri => topo.face_vertices(f as usize).len() == 3,
+                };
+                if opposite {
+                    let opp = topo
+                        .face_vertices(f as usize)
+                        .iter()
+                        .copied()
+                        .find(|&x| x != a && x != b);
+                    if let Some(o) = opp {
+                        s.b.add(o, mask.faces[i]);
                     }
-                    Split::Polygons => s.b.add_centroid(topo, f as usize, mask.faces[i]),
+                } else {
+                    s.b.add_centroid(topo, f as usize, mask.faces[i]);
                 }
             }
         } else {
             // A face's vertices are distinct.
-            let fv = topo.face_vertices(j - nv - ne);
+            let f = if self.split == Split::QuadTri {
+                self.quads[j - nv - ne] as usize
+            } else {
+                j - nv - ne
+            };
+            let fv = topo.face_vertices(f);
             let wf = 1.0 / fv.len() as f64;
             for &v in fv {
                 s.b.add_new(v, wf);
