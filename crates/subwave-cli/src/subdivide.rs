@@ -20,6 +20,9 @@ pub enum SchemeArg {
     CatmullClark,
     /// Bilinear (any polygons, split into quads).
     Bilinear,
+    /// Quad/triangle (Stam & Loop 2003): triangles and quads, Loop on triangles,
+    /// Catmull-Clark on quads, sharp and semi-sharp creases.
+    QuadTri,
 }
 
 /// Boundary treatment on the command line.
@@ -68,6 +71,7 @@ pub fn run(args: &SubdivideArgs) -> Result<()> {
             SchemeArg::Midpoint => Scheme::Midpoint,
             SchemeArg::CatmullClark => Scheme::CatmullClark,
             SchemeArg::Bilinear => Scheme::Bilinear,
+            SchemeArg::QuadTri => Scheme::QuadTri,
         },
         levels: args.levels,
         boundary: match args.boundary {

@@ -359,10 +359,10 @@ mod tests {
             }
             // Fixed points never move.
             let c5 = c.subdivide_levels(5);
-            for i in 0..c.len() {
+            for (i, (&p, &l)) in c.points.iter().zip(&l0).enumerate() {
                 if c.is_fixed(i) {
-                    assert_eq!(c5.points[i << 5], c.points[i]);
-                    assert_eq!(l0[i], c.points[i]);
+                    assert_eq!(c5.points[i << 5], p);
+                    assert_eq!(l, p);
                 }
             }
         }
@@ -379,8 +379,8 @@ mod tests {
         let p = polygon(7, 2.0);
         for closed in [false, true] {
             let c = SubdivisionCurve::new(p.clone(), closed, vec![3]).unwrap();
-            let img = SubdivisionCurve::new(p.iter().map(|&x| f(x)).collect(), closed, vec![3])
-                .unwrap();
+            let img =
+                SubdivisionCurve::new(p.iter().map(|&x| f(x)).collect(), closed, vec![3]).unwrap();
             let a: Vec<DVec3> = c.subdivide_levels(3).points.into_iter().map(f).collect();
             assert!(max_dist(&a, &img.subdivide_levels(3).points) < 1e-12);
             let a: Vec<DVec3> = c.limit_positions().into_iter().map(f).collect();
