@@ -21,9 +21,10 @@
 //! Catmull-Clark): a crease of a mesh refines as this curve (tested).
 //!
 //! Both operators are linear in the control points, so they are also offered as
-//! [`StencilTable`]s ([`SubdivisionCurve::refine_table`], [`SubdivisionCurve::limit_table`]):
-//! the fitting of §V.2.2 expresses sample points of a finer level as such linear combinations
-//! of the control points.
+//! [`StencilTable`]s ([`SubdivisionCurve::refine_table`], [`SubdivisionCurve::limit_table`],
+//! and composed over several levels, [`SubdivisionCurve::sample_table`]): the fitting of
+//! §V.2.2 expresses sample points of a finer level as such linear combinations of the control
+//! points.
 //!
 //! Point order of a refined curve: `P_0', E_0, P_1', E_1, …` along the curve (`E_i` on segment
 //! `P_i P_{i+1}`), so control point `i` becomes point `2i` and a corner `c` becomes corner
@@ -179,6 +180,26 @@ impl SubdivisionCurve {
         t
     }
 
+    /// The points of level `levels` (their limit positions if `limit`) as a stencil table
+    /// over this curve's control points: the linear map from control points to sample points
+    /// that the least-squares fitting of §V.2.2 needs (`levels = 0` with `limit` gives eq. 4).
+    pub fn sample_table(&self, levels: u32, limit: bool) -> StencilTable {
+        let mut c = self.clone();
+        let mut acc = identity(self.points.len());
+        for _ in 0..levels {
+            acc = compose(&acc, &c.refine_table());
+            c = SubdivisionCurve {
+                points: vec![DVec3::ZERO; 2 * c.len() - usize::from(!c.closed)],
+                closed: c.closed,
+                corners: c.corners.iter().map(|&k| 2 * k).collect(),
+            };
+        }
+        if limit {
+            acc = compose(&acc, &c.limit_table());
+        }
+        acc
+    }
+
     /// The curve after one refinement step (eqs. 2-3): corners `c` become `2c`.
     pub fn subdivide(&self) -> SubdivisionCurve {
         SubdivisionCurve {
@@ -201,6 +222,45 @@ impl SubdivisionCurve {
     pub fn limit_positions(&self) -> Vec<DVec3> {
         self.limit_table().apply(&self.points)
     }
+}
+
+/// The identity table on `n` points.
+fn identity(n: usize) -> StencilTable {
+    StencilTable {
+        num_sources: n as u32,
+        offsets: (0..=n as u32).collect(),
+        indices: (0..n as u32).collect(),
+        weights: vec![1.0; n],
+    }
+}
+
+/// `then ∘ first`: the table mapping `first`'s sources to `then`'s outputs (repeated
+/// sources merged, in order of first appearance).
+fn compose(first: &StencilTable, then: &StencilTable) -> StencilTable {
+    let mut out = StencilTable {
+        num_sources: first.num_sources,
+        offsets: vec![0],
+        indices: Vec::new(),
+        weights: Vec::new(),
+    };
+    for j in 0..then.len() {
+        let row = out.indices.len();
+        for k in then.offsets[j] as usize..then.offsets[j + 1] as usize {
+            let (mid, w) = (then.indices[k] as usize, then.weights[k]);
+            for m in first.offsets[mid] as usize..first.offsets[mid + 1] as usize {
+                let (src, v) = (first.indices[m], first.weights[m]);
+                match out.indices[row..].iter().position(|&x| x == src) {
+                    Some(p) => out.weights[row + p] += w * v,
+                    None => {
+                        out.indices.push(src);
+                        out.weights.push(w * v);
+                    }
+                }
+            }
+        }
+        out.offsets.push(out.indices.len() as u32);
+    }
+    out
 }
 
 /// The uniform cubic B-spline segment of control points `p[0..4]` at `u ∈ [0, 1]`: the limit
@@ -363,6 +423,28 @@ mod tests {
                 if c.is_fixed(i) {
                     assert_eq!(c5.points[i << 5], p);
                     assert_eq!(l, p);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn sample_tables_match_refinement() {
+        let p = polygon(5, 1.5);
+        for (closed, corners) in [(true, vec![]), (true, vec![2]), (false, vec![3])] {
+            let c = SubdivisionCurve::new(p.clone(), closed, corners).unwrap();
+            for levels in 0..4 {
+                let ck = c.subdivide_levels(levels);
+                let t = c.sample_table(levels, false);
+                assert!(max_dist(&t.apply(&c.points), &ck.points) < 1e-14);
+                let t = c.sample_table(levels, true);
+                assert!(max_dist(&t.apply(&c.points), &ck.limit_positions()) < 1e-14);
+                // Rows are affine combinations.
+                for j in 0..t.len() {
+                    let w: f64 = t.weights[t.offsets[j] as usize..t.offsets[j + 1] as usize]
+                        .iter()
+                        .sum();
+                    assert!((w - 1.0).abs() < 1e-14);
                 }
             }
         }

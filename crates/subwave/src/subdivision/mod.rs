@@ -186,7 +186,8 @@ impl Refinement {
     /// # Errors
     /// - [`Error::Mesh`] if the mesh violates [`Mesh::check_indices`], is not a consistently
     ///   oriented manifold (the error lists the edges or vertices), or has faces the scheme
-    ///   cannot take (Loop on quads: the error names them and suggests Catmull-Clark);
+    ///   cannot take (Loop on quads, quad-tri on other polygons: the error names them and
+    ///   suggests Catmull-Clark);
     /// - [`Error::InvalidArgument`] if the result would exceed [`MAX_FACES`] faces.
     pub fn build(mesh: &Mesh, opts: &SubdivideOptions, keep_stencils: bool) -> Result<Refinement> {
         Self::build_with(mesh, opts, keep_stencils, true)

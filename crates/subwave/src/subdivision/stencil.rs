@@ -10,6 +10,8 @@
 //!
 //! Masks of the common configurations (smooth interior vertices by valence, smooth edges
 //! between two faces by arity) are asked of the rules once per level and reused.
+//! Quad/triangle splits ([`Split::QuadTri`]) ask every mask of the rules with the arities of
+//! the incident faces ([`Rules::vertex_mask_with_arities`], [`Rules::edge_mask_with_arities`]).
 
 use glam::DVec3;
 use rayon::prelude::*;
