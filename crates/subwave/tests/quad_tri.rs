@@ -562,3 +562,27 @@ fn strip_boundary() -> Vec<u32> {
     assert_eq!(l.len(), bedges.len());
     l
 }
+
+/// The shared corpus's mixed mesh (Suzanne: 468 quads, 32 triangles, open), against the
+/// linear-subdivision-then-smoothing reference. Skipped if the corpus is absent.
+#[test]
+fn corpus_mixed_mesh_matches_reference() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/meshes/suzanne.obj");
+    let Ok(mut m) = subwave::io::read_mesh(&path, None) else {
+        eprintln!("skipped: {} not found", path.display());
+        return;
+    };
+    m.remove_unreferenced();
+    assert!(count_quads(&m) > 0 && count_quads(&m) < m.num_faces());
+    let chi = Topology::build(&m).euler_characteristic();
+    let mut reference = m.clone();
+    for level in 1..=2u32 {
+        reference = two_step(&reference);
+        let q = subdivide(&m, &opts(Scheme::QuadTri, level)).unwrap();
+        assert_eq!(q.face_indices, reference.face_indices);
+        let d = max_dist(&q.positions, &reference.positions);
+        assert!(d < 1e-12, "level {level}: {d}");
+        assert_eq!(Topology::build(&q).euler_characteristic(), chi);
+    }
+}
