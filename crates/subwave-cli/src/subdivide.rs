@@ -29,6 +29,10 @@ pub enum SchemeArg {
     /// Kobbelt's sqrt(3) (triangles): faces triple per level, boundaries trisected every
     /// second level.
     Sqrt3,
+
+    /// Quad/triangle (Stam & Loop 2003): triangles and quads, Loop on triangles,
+    /// Catmull-Clark on quads, sharp and semi-sharp creases.
+    QuadTri,
 }
 
 /// Boundary treatment on the command line.
@@ -73,6 +77,7 @@ pub fn scheme(arg: SchemeArg) -> Scheme {
         SchemeArg::Butterfly => Scheme::Butterfly,
         SchemeArg::ButterflyOriginal => Scheme::ButterflyOriginal,
         SchemeArg::Sqrt3 => Scheme::Sqrt3,
+        SchemeArg::QuadTri => Scheme::QuadTri,
     }
 }
 

@@ -17,7 +17,8 @@ use crate::mesh::FaceVarying;
 /// faces; `fv.indices` has one entry per face corner).
 ///
 /// Returns the finest level's data, one index per corner of the finest faces in the order of
-/// [`super::refine`]'s face contract.
+/// [`super::refine`]'s face contract (for [`Split::QuadTri`], triangles split 1-to-4 and quads
+/// around a face point).
 ///
 /// # Panics
 /// If `fv.indices.len()` differs from the corner count of `face_offsets`, or `split` is
@@ -55,8 +56,13 @@ pub fn refine_linear(
         for w in offsets.windows(2) {
             let u = &indices[w[0] as usize..w[1] as usize];
             let n = u.len();
-            match split {
-                Split::Triangles => {
+            let polygon = match split {
+                Split::Triangles => false,
+                Split::Polygons => true,
+                Split::QuadTri => n != 3,
+            };
+            match polygon {
+                false => {
                     assert_eq!(n, 3, "triangle split of a face with {n} corners");
                     let m01 = mid(&mut coords, u[0], u[1]);
                     let m12 = mid(&mut coords, u[1], u[2]);
@@ -71,7 +77,7 @@ pub fn refine_linear(
                         next_offsets.push(next.len() as u32);
                     }
                 }
-                Split::Polygons => {
+                true => {
                     let mut c = [0.0; 2];
                     for &i in u {
                         c[0] += coords[i as usize][0];

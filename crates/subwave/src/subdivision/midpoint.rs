@@ -19,6 +19,8 @@ impl Rules for MidpointRules {
         match self.split {
             Split::Triangles => "midpoint",
             Split::Polygons => "bilinear",
+            // The linear step of quad/triangle subdivision (Stam & Loop 2003).
+            Split::QuadTri => "midpoint",
         }
     }
 

@@ -2,8 +2,8 @@
 //!
 //! The layers follow OpenSubdiv:
 //! - **rules** ([`rules`], one file per scheme: [`loop_scheme`], [`catmull_clark`],
-//!   [`butterfly`], [`midpoint`]; [`sqrt3`] has its own 1-to-3 split, flips and stencils):
-//!   pure masks from a local neighbourhood (valence, sharpness, tags, sector);
+//!   [`butterfly`], [`midpoint`], [`quad_tri`]; [`sqrt3`] has its own 1-to-3 split, flips and
+//!   stencils): pure masks from a local neighbourhood (valence, sharpness, tags, sector);
 //! - **refinement** ([`refine`]): each child level's flat tables built directly from the
 //!   parent's, following the ordering contract documented there;
 //! - **stencils** ([`stencil`]): each level's child vertices as weighted sums of parent
@@ -16,10 +16,12 @@
 
 pub mod butterfly;
 pub mod catmull_clark;
+pub mod curves;
 pub mod face_varying;
 pub mod loop_scheme;
 pub mod midpoint;
 pub mod profile;
+pub mod quad_tri;
 pub mod refine;
 pub mod rules;
 pub mod sqrt3;
@@ -58,6 +60,10 @@ pub enum Scheme {
     /// Kobbelt's √3 (triangles): 1-to-3 split, relaxation, edge flips; boundaries trisected
     /// every second step ([`sqrt3`]).
     Sqrt3,
+
+    /// Quad/triangle subdivision of Stam & Loop 2003 (triangles and quads; Loop on triangle
+    /// regions, Catmull-Clark on quad regions), sharp and semi-sharp creases.
+    QuadTri,
 }
 
 impl Scheme {
@@ -72,6 +78,8 @@ impl Scheme {
             Scheme::ButterflyOriginal => "butterfly-original",
 
             Scheme::Sqrt3 => "sqrt3",
+
+            Scheme::QuadTri => "quad-tri",
         }
     }
 }
@@ -161,6 +169,10 @@ fn rules_for(opts: &SubdivideOptions, mesh: &Mesh) -> Box<dyn Rules> {
 
         // √3 has its own split and stencils: `Refinement::build_with` hands it to `sqrt3`.
         Scheme::Sqrt3 => unreachable!("sqrt3 is refined by subdivision::sqrt3"),
+
+        Scheme::QuadTri => Box::new(quad_tri::QuadTriRules {
+            weights: opts.loop_weights,
+        }),
     }
 }
 
@@ -217,7 +229,8 @@ impl Refinement {
     /// # Errors
     /// - [`Error::Mesh`] if the mesh violates [`Mesh::check_indices`], is not a consistently
     ///   oriented manifold (the error lists the edges or vertices), or has faces the scheme
-    ///   cannot take (Loop on quads: the error names them and suggests Catmull-Clark);
+    ///   cannot take (Loop on quads, quad-tri on other polygons: the error names them and
+    ///   suggests Catmull-Clark);
     /// - [`Error::InvalidArgument`] if the result would exceed [`MAX_FACES`] faces.
     pub fn build(mesh: &Mesh, opts: &SubdivideOptions, keep_stencils: bool) -> Result<Refinement> {
         Self::build_with(mesh, opts, keep_stencils, true)
@@ -332,7 +345,7 @@ impl Refinement {
                 let n = 3usize.pow(l);
                 f * n..(f + 1) * n
             }
-            (l, Some(Split::Triangles)) => {
+            (l, Some(Split::Triangles | Split::QuadTri)) => {
                 let n = 4usize.pow(l);
                 f * n..(f + 1) * n
             }
@@ -424,11 +437,16 @@ pub(crate) fn prepare(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Prepared> 
             "use catmull-clark or bilinear (any polygons)",
         )?;
     }
+    if opts.scheme == Scheme::QuadTri {
+        quad_tri::require_triangles_and_quads(mesh)?;
+    }
     let rules = rules_for(opts, mesh);
     let split = rules.split();
     let corners = mesh.face_indices.len() as u64;
     let faces_out = match split {
-        Split::Triangles => mesh.num_faces() as u64 * 4u64.saturating_pow(opts.levels),
+        Split::Triangles | Split::QuadTri => {
+            mesh.num_faces() as u64 * 4u64.saturating_pow(opts.levels)
+        }
         Split::Polygons => {
             corners.saturating_mul(4u64.saturating_pow(opts.levels.saturating_sub(1)))
         }

@@ -18,6 +18,13 @@
 //!   `m_i` on edges `v_i v_{i+1}` and face point `c` has children `offset_k + i =
 //!   (v_i, m_i, c, m_{i-1})`, `offset_k` being the number of corners of the faces before `k`
 //!   (so the children of quad `k` of a quad mesh are `4k..4k+3`). This is OpenSubdiv's order.
+//! - **Quad/triangle split** ([`Split::QuadTri`], Stam & Loop 2003; Lavoué et al. §III.2):
+//!   on a mesh of triangles and quads, the parent's vertices keep their indices, then one
+//!   vertex per parent edge in edge order (`V + e`), then one face point per parent *quad* in
+//!   face order (`V + E + q`, `q` counting the quads before it; triangles get none). Every
+//!   parent face has four children, stored in parent face order (children of face `k` are
+//!   `4k..4k+3`): a triangle's in the triangle-split order above (Maret eq. 5.7), a quad's in
+//!   the polygon-split order `(v_i, m_i, c, m_{i-1})`.
 //! - **Edges** of the child level: order of first appearance in the child face list.
 //! - **√3 split** (not a [`Split`]: [`super::sqrt3`] refines itself): parent vertices keep
 //!   their indices, then one centroid per split face in face order (`V + f` on closed meshes),
@@ -35,6 +42,18 @@ pub enum Split {
     Triangles,
     /// Each n-gon into n quads around a face point (Catmull-Clark, bilinear, B-splines).
     Polygons,
+    /// Triangles 1-to-4 by edge points, quads 1-to-4 around a face point (quad/triangle
+    /// subdivision of Stam & Loop 2003); faces of other arities are not allowed.
+    QuadTri,
+}
+
+/// Number of quads among `parent`'s faces (the face points of a [`Split::QuadTri`]).
+pub fn num_quads(parent: &Topology) -> usize {
+    parent
+        .face_offsets
+        .windows(2)
+        .filter(|w| w[1] - w[0] == 4)
+        .count()
 }
 
 /// The child level's faces and edges, before the derived tables are built.
@@ -57,6 +76,7 @@ pub fn child_vertex_count(parent: &Topology, split: Split) -> usize {
     match split {
         Split::Triangles => base,
         Split::Polygons => base + parent.num_faces(),
+        Split::QuadTri => base + num_quads(parent),
     }
 }
 
@@ -124,6 +144,32 @@ pub fn child_faces(parent: &Topology, split: Split) -> (Vec<u32>, Vec<u32>) {
             });
             (uniform_offsets(nc, 4), fv)
         }
+        Split::QuadTri => {
+            let mut offsets = Vec::with_capacity(4 * nf + 1);
+            let mut fv = Vec::with_capacity(4 * parent.face_vertices.len());
+            offsets.push(0u32);
+            let mut q = nv + ne;
+            for f in 0..nf {
+                let v = parent.face_vertices(f);
+                let e = parent.face_edges(f);
+                if v.len() == 3 {
+                    let (v3, v4, v5) = (nv + e[0], nv + e[1], nv + e[2]);
+                    for t in [[v[0], v3, v5], [v[1], v4, v3], [v[2], v5, v4], [v3, v4, v5]] {
+                        fv.extend_from_slice(&t);
+                        offsets.push(fv.len() as u32);
+                    }
+                } else {
+                    let n = v.len();
+                    for i in 0..n {
+                        let prev = if i == 0 { n - 1 } else { i - 1 };
+                        fv.extend_from_slice(&[v[i], nv + e[i], q, nv + e[prev]]);
+                        offsets.push(fv.len() as u32);
+                    }
+                    q += 1;
+                }
+            }
+            (offsets, fv)
+        }
     }
 }
 
@@ -131,7 +177,7 @@ pub fn child_faces(parent: &Topology, split: Split) -> (Vec<u32>, Vec<u32>) {
 ///
 /// Preconditions: `parent` is a consistently oriented manifold (checked by
 /// [`crate::validate::require_manifold`] at level 0; splitting preserves it), and for
-/// [`Split::Triangles`] every face is a triangle.
+/// [`Split::Triangles`] every face is a triangle, for [`Split::QuadTri`] a triangle or a quad.
 pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
     let (face_offsets, face_vertices) = child_faces(parent, split);
     let nv = parent.num_vertices;
@@ -208,6 +254,59 @@ pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
                     let c = base + 4 * i;
                     face_edges[c..c + 4].copy_from_slice(&[h_out, int_i, int_p, h_in]);
                     prev_interior = int_i;
+                }
+            }
+        }
+        Split::QuadTri => {
+            let ne32 = ne as u32;
+            let mut q = nv + ne32;
+            for f in 0..nf {
+                let v = parent.face_vertices(f);
+                let e = parent.face_edges(f);
+                // Children of face f are 4f..4f+3, starting at this corner of the child list.
+                let base = face_offsets[4 * f] as usize;
+                if v.len() == 3 {
+                    // As Split::Triangles.
+                    let m = [nv + e[0], nv + e[1], nv + e[2]];
+                    let h00 = half(&mut edge_vertices, e[0], v[0], [v[0], m[0]]);
+                    let ia = new_edge(&mut edge_vertices, [m[0], m[2]]);
+                    let h20 = half(&mut edge_vertices, e[2], v[0], [m[2], v[0]]);
+                    let h11 = half(&mut edge_vertices, e[1], v[1], [v[1], m[1]]);
+                    let ib = new_edge(&mut edge_vertices, [m[1], m[0]]);
+                    let h01 = half(&mut edge_vertices, e[0], v[1], [m[0], v[1]]);
+                    let h22 = half(&mut edge_vertices, e[2], v[2], [v[2], m[2]]);
+                    let ic = new_edge(&mut edge_vertices, [m[2], m[1]]);
+                    let h12 = half(&mut edge_vertices, e[1], v[2], [m[1], v[2]]);
+                    face_edges[base..base + 12]
+                        .copy_from_slice(&[h00, ia, h20, h11, ib, h01, h22, ic, h12, ib, ic, ia]);
+                } else {
+                    // As Split::Polygons, with the quad's face point q.
+                    let n = v.len();
+                    let cpt = q;
+                    q += 1;
+                    let mut first_interior = 0u32;
+                    let mut prev_interior = 0u32;
+                    for i in 0..n {
+                        let ip = if i == 0 { n - 1 } else { i - 1 };
+                        let (mi, mp) = (nv + e[i], nv + e[ip]);
+                        let h_out = half(&mut edge_vertices, e[i], v[i], [v[i], mi]);
+                        let int_i = if i == n - 1 {
+                            first_interior
+                        } else {
+                            new_edge(&mut edge_vertices, [mi, cpt])
+                        };
+                        let int_p = if i == 0 {
+                            let id = new_edge(&mut edge_vertices, [cpt, mp]);
+                            first_interior = id;
+                            id
+                        } else {
+                            prev_interior
+                        };
+                        let h_in = half(&mut edge_vertices, e[ip], v[i], [mp, v[i]]);
+                        let c = base + 4 * i;
+                        face_edges[c..c + 4].copy_from_slice(&[h_out, int_i, int_p, h_in]);
+                        prev_interior = int_i;
+                    }
                 }
             }
         }
@@ -288,6 +387,64 @@ mod tests {
         check_same(&generate::pyramid(), Split::Polygons);
         check_same(&generate::grid(3, 2, false), Split::Polygons);
         check_same(&generate::torus(1.0, 0.4, 5, 4, false), Split::Polygons);
+    }
+
+    /// A closed mixed mesh: the cube with its top and front faces split into two triangles.
+    pub(crate) fn mixed_cube() -> Mesh {
+        let c = generate::cube();
+        let mut faces: Vec<Vec<u32>> = Vec::new();
+        for (k, f) in c.faces().enumerate() {
+            if k == 1 || k == 2 {
+                faces.push(vec![f[0], f[1], f[2]]);
+                faces.push(vec![f[0], f[2], f[3]]);
+            } else {
+                faces.push(f.to_vec());
+            }
+        }
+        Mesh::from_faces(c.positions.clone(), faces)
+    }
+
+    #[test]
+    fn quad_tri_split_matches_build() {
+        check_same(&mixed_cube(), Split::QuadTri);
+        check_same(&generate::icosahedron(), Split::QuadTri);
+        check_same(&generate::cube(), Split::QuadTri);
+        check_same(&generate::grid(3, 2, false), Split::QuadTri);
+        check_same(&generate::disk(5), Split::QuadTri);
+    }
+
+    #[test]
+    fn quad_tri_split_ordering() {
+        let m = mixed_cube();
+        let parent = Topology::build(&m);
+        let (nv, ne) = (parent.num_vertices, parent.num_edges() as u32);
+        let (off, fv) = child_faces(&parent, Split::QuadTri);
+        assert_eq!(off.len(), 4 * parent.num_faces() + 1);
+        assert_eq!(
+            child_vertex_count(&parent, Split::QuadTri),
+            (nv + ne) as usize + 4
+        );
+        let mut q = nv + ne;
+        for f in 0..parent.num_faces() {
+            let v = parent.face_vertices(f);
+            let e = parent.face_edges(f);
+            let kids: Vec<&[u32]> = (4 * f..4 * f + 4)
+                .map(|c| &fv[off[c] as usize..off[c + 1] as usize])
+                .collect();
+            if v.len() == 3 {
+                let (v3, v4, v5) = (nv + e[0], nv + e[1], nv + e[2]);
+                assert_eq!(kids[0], &[v[0], v3, v5]);
+                assert_eq!(kids[1], &[v[1], v4, v3]);
+                assert_eq!(kids[2], &[v[2], v5, v4]);
+                assert_eq!(kids[3], &[v3, v4, v5]);
+            } else {
+                for i in 0..4 {
+                    let p = (i + 3) % 4;
+                    assert_eq!(kids[i], &[v[i], nv + e[i], q, nv + e[p]]);
+                }
+                q += 1;
+            }
+        }
     }
 
     #[test]

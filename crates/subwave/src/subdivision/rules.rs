@@ -9,7 +9,8 @@
 //!   incident edge, `faces[i]` the centroid of the `i`-th incident face (polygon schemes);
 //! - edge masks: `ends[0]`, `ends[1]` weigh the edge's ends (in the edge's stored direction),
 //!   `faces[i]` the vertex opposite the edge in the `i`-th incident triangle (triangle schemes)
-//!   or the centroid of the `i`-th incident face (polygon schemes).
+//!   or the centroid of the `i`-th incident face (polygon schemes); the quad/triangle split
+//!   mixes both per face: opposite vertex of a triangle, centroid of a quad.
 //!
 //! Sharpness follows OpenSubdiv (`Sdc::Crease`): 0 smooth, `>= SHARPNESS_INFINITE` infinitely
 //! sharp, in between semi-sharp. Boundary edges arrive as infinitely sharp, so that "boundary
@@ -362,6 +363,34 @@ pub trait Rules: Sync {
         scratch: &mut EdgeMask,
     ) {
         let _ = rings;
+        self.edge_mask(n, mask, scratch);
+    }
+    /// The vertex mask when the rule depends on the arity of each incident face (the refiner
+    /// calls it instead of [`Rules::vertex_mask`] for [`super::refine::Split::QuadTri`]):
+    /// `face_arities[i]` is the arity of the `i`-th incident face. Defaults to
+    /// [`Rules::vertex_mask`].
+    fn vertex_mask_with_arities(
+        &self,
+        n: &VertexNeighborhood,
+        face_arities: &[u32],
+        mask: &mut VertexMask,
+        scratch: &mut VertexMask,
+    ) {
+        let _ = face_arities;
+        self.vertex_mask(n, mask, scratch);
+    }
+    /// The edge mask when the rule depends on the arity of each incident face (called instead
+    /// of [`Rules::edge_mask`] for [`super::refine::Split::QuadTri`]; `faces[i]` of the mask
+    /// then weighs the opposite vertex of a triangle, the centroid of a quad). Defaults to
+    /// [`Rules::edge_mask`].
+    fn edge_mask_with_arities(
+        &self,
+        n: &EdgeNeighborhood,
+        face_arities: &[u32],
+        mask: &mut EdgeMask,
+        scratch: &mut EdgeMask,
+    ) {
+        let _ = face_arities;
         self.edge_mask(n, mask, scratch);
     }
 }

@@ -10,6 +10,8 @@
 //!
 //! Masks of the common configurations (smooth interior vertices by valence, smooth edges
 //! between two faces by arity) are asked of the rules once per level and reused.
+//! Quad/triangle splits ([`Split::QuadTri`]) ask every mask of the rules with the arities of
+//! the incident faces ([`Rules::vertex_mask_with_arities`], [`Rules::edge_mask_with_arities`]).
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -326,6 +328,8 @@ struct Scratch {
     /// Per edge end (rules that need rings): rotated ring sharpness and ring vertices.
     ring_sharp: [Vec<f64>; 2],
     ring_verts: [Vec<u32>; 2],
+
+    arities: Vec<u32>,
 }
 
 /// One level's stencil generator: the single place that turns masks into (index, weight)
@@ -336,6 +340,8 @@ struct Level<'a> {
     ctx: &'a LevelContext<'a>,
     cache: MaskCache,
     split: Split,
+    /// [`Split::QuadTri`]: the parent quads, whose face points follow the edge points.
+    quads: Vec<u32>,
     needs_sectors: bool,
     needs_rings: bool,
     /// Per vertex: the number of incident edges with nonzero sharpness (saturating), or 255
@@ -351,13 +357,14 @@ impl<'a> Level<'a> {
         let nv = topo.num_vertices as usize;
         let ne = topo.num_edges();
         let split = ctx.rules.split();
-        let n_child = nv
-            + ne
-            + if split == Split::Polygons {
-                topo.num_faces()
-            } else {
-                0
-            };
+        let n_child = super::refine::child_vertex_count(topo, split);
+        let quads = if split == Split::QuadTri {
+            (0..topo.num_faces() as u32)
+                .filter(|&f| topo.face_vertices(f as usize).len() == 4)
+                .collect()
+        } else {
+            Vec::new()
+        };
         let mut features: Vec<u8> = topo
             .vertex_sharpness
             .iter()
@@ -372,6 +379,7 @@ impl<'a> Level<'a> {
         }
         Level {
             topo,
+            quads,
             features,
             ctx,
             cache: MaskCache::new(ctx.rules),
@@ -406,8 +414,11 @@ impl<'a> Level<'a> {
                 return;
             }
             let vsharp = topo.vertex_sharpness[v];
-            let smooth =
-                self.features[v] == 0 && edges.len() == faces.len() && edges.len() < CACHED_VALENCE;
+            let mixed = self.split == Split::QuadTri;
+            let smooth = self.features[v] == 0
+                && edges.len() == faces.len()
+                && edges.len() < CACHED_VALENCE
+                && !mixed;
             let mask = if smooth {
                 &self.cache.smooth_vertex[edges.len()]
             } else {
@@ -427,7 +438,19 @@ impl<'a> Level<'a> {
                     child_edge_sharpness: &s.child_sharp,
                     child_vertex_sharpness: decrement(vsharp),
                 };
-                self.ctx.rules.vertex_mask(&n, &mut s.vm, &mut s.vs);
+                if mixed {
+                    s.arities.clear();
+                    s.arities.extend(
+                        faces
+                            .iter()
+                            .map(|&f| topo.face_vertices(f as usize).len() as u32),
+                    );
+                    self.ctx
+                        .rules
+                        .vertex_mask_with_arities(&n, &s.arities, &mut s.vm, &mut s.vs);
+                } else {
+                    self.ctx.rules.vertex_mask(&n, &mut s.vm, &mut s.vs);
+                }
                 &s.vm
             };
             // The vertex and its neighbours are distinct (no two edges join the same vertices);
@@ -451,7 +474,10 @@ impl<'a> Level<'a> {
                 self.ring_edge_stencil(e, s);
                 return;
             }
+
+            let mixed = self.split == Split::QuadTri;
             let cached = sharpness == 0.0
+                && !mixed
                 && faces.len() == 2
                 && face_arity < CACHED_ARITY
                 && (!self.needs_sectors || self.no_sector(a) && self.no_sector(b));
@@ -484,29 +510,51 @@ impl<'a> Level<'a> {
                     ends,
                     child_sharpness,
                 };
-                self.ctx.rules.edge_mask(&n, &mut s.em, &mut s.es);
+                if mixed {
+                    s.arities.clear();
+                    s.arities.extend(
+                        faces
+                            .iter()
+                            .map(|&f| topo.face_vertices(f as usize).len() as u32),
+                    );
+                    self.ctx
+                        .rules
+                        .edge_mask_with_arities(&n, &s.arities, &mut s.em, &mut s.es);
+                } else {
+                    self.ctx.rules.edge_mask(&n, &mut s.em, &mut s.es);
+                }
                 &s.em
             };
             s.b.add_new(a, mask.ends[0]);
             s.b.add_new(b, mask.ends[1]);
             for (i, &f) in faces.iter().enumerate() {
-                match self.split {
-                    Split::Triangles => {
-                        let opp = topo
-                            .face_vertices(f as usize)
-                            .iter()
-                            .copied()
-                            .find(|&x| x != a && x != b);
-                        if let Some(o) = opp {
-                            s.b.add(o, mask.faces[i]);
-                        }
+                // Triangles weigh their vertex opposite the edge, polygons their centroid.
+                let opposite = match self.split {
+                    Split::Triangles => true,
+                    Split::Polygons => false,
+                    Split::QuadTri => topo.face_vertices(f as usize).len() == 3,
+                };
+                if opposite {
+                    let opp = topo
+                        .face_vertices(f as usize)
+                        .iter()
+                        .copied()
+                        .find(|&x| x != a && x != b);
+                    if let Some(o) = opp {
+                        s.b.add(o, mask.faces[i]);
                     }
-                    Split::Polygons => s.b.add_centroid(topo, f as usize, mask.faces[i]),
+                } else {
+                    s.b.add_centroid(topo, f as usize, mask.faces[i]);
                 }
             }
         } else {
             // A face's vertices are distinct.
-            let fv = topo.face_vertices(j - nv - ne);
+            let f = if self.split == Split::QuadTri {
+                self.quads[j - nv - ne] as usize
+            } else {
+                j - nv - ne
+            };
+            let fv = topo.face_vertices(f);
             let wf = 1.0 / fv.len() as f64;
             for &v in fv {
                 s.b.add_new(v, wf);
@@ -568,7 +616,7 @@ impl Level<'_> {
                         s.b.add(o, w);
                     }
                 }
-                Split::Polygons => s.b.add_centroid(topo, f as usize, w),
+                Split::Polygons | Split::QuadTri => s.b.add_centroid(topo, f as usize, w),
             }
         }
         for k in 0..2 {
