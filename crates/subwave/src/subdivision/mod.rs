@@ -14,6 +14,7 @@
 //! number of sharp incident edges or a corner tag.
 
 pub mod catmull_clark;
+pub mod limit;
 pub mod loop_scheme;
 pub mod midpoint;
 pub mod refine;
