@@ -45,8 +45,8 @@ fn loop_limit_on_regular_grid_is_the_quartic_box_spline() {
         for j in 1..n as i64 {
             for i in 1..n as i64 {
                 let ring = [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1)];
-                let expect = 0.5 * h(i, j)
-                    + ring.iter().map(|(a, b)| h(i + a, j + b)).sum::<f64>() / 12.0;
+                let expect =
+                    0.5 * h(i, j) + ring.iter().map(|(a, b)| h(i + a, j + b)).sum::<f64>() / 12.0;
                 let got = l.positions[id(i, j)].z;
                 assert!((got - expect).abs() < 1e-12, "{i},{j}: {got} vs {expect}");
             }
@@ -76,7 +76,11 @@ fn catmull_clark_limit_on_regular_grid_is_the_bicubic_b_spline() {
                 }
             }
             let got = l.positions[id(i, j)];
-            assert!((got.z - expect).abs() < 1e-12, "{i},{j}: {} vs {expect}", got.z);
+            assert!(
+                (got.z - expect).abs() < 1e-12,
+                "{i},{j}: {} vs {expect}",
+                got.z
+            );
             assert!((got.x - i as f64).abs() < 1e-12 && (got.y - j as f64).abs() < 1e-12);
         }
     }
@@ -126,8 +130,16 @@ fn invariance_cases() -> Vec<(&'static str, Mesh, SubdivideOptions)> {
     // The loop around the face z = -1.
     let sharp_cube = with_crease_line(sharp_cube, &[0, 2, 3, 1, 0]);
     vec![
-        ("icosahedron", generate::icosahedron(), opts(Scheme::Loop, 0)),
-        ("tetrahedron", generate::tetrahedron(), opts(Scheme::Loop, 0)),
+        (
+            "icosahedron",
+            generate::icosahedron(),
+            opts(Scheme::Loop, 0),
+        ),
+        (
+            "tetrahedron",
+            generate::tetrahedron(),
+            opts(Scheme::Loop, 0),
+        ),
         (
             "tri torus",
             bumpy(generate::torus(1.0, 0.4, 6, 5, true)),
@@ -153,7 +165,11 @@ fn invariance_cases() -> Vec<(&'static str, Mesh, SubdivideOptions)> {
             },
         ),
         ("cube", generate::cube(), opts(Scheme::CatmullClark, 1)),
-        ("pyramid", generate::pyramid(), opts(Scheme::CatmullClark, 1)),
+        (
+            "pyramid",
+            generate::pyramid(),
+            opts(Scheme::CatmullClark, 1),
+        ),
         (
             "quad torus",
             bumpy(generate::torus(1.0, 0.4, 6, 5, false)),
@@ -161,11 +177,7 @@ fn invariance_cases() -> Vec<(&'static str, Mesh, SubdivideOptions)> {
         ),
         ("grid", grid, opts(Scheme::CatmullClark, 0)),
         ("creased grid", creased_grid, opts(Scheme::CatmullClark, 0)),
-        (
-            "sharp cube face",
-            sharp_cube,
-            opts(Scheme::CatmullClark, 1),
-        ),
+        ("sharp cube face", sharp_cube, opts(Scheme::CatmullClark, 1)),
     ]
 }
 
@@ -188,7 +200,11 @@ fn limit_positions_and_normals_are_invariant_under_refinement() {
             let mut checked_normals = 0;
             for v in 0..rc.positions.len() {
                 let d = (a.positions[v] - b.positions[v]).length();
-                assert!(d < 1e-12, "{name} level {}: vertex {v} moved {d}", coarse.levels);
+                assert!(
+                    d < 1e-12,
+                    "{name} level {}: vertex {v} moved {d}",
+                    coarse.levels
+                );
                 moved = moved.max((a.positions[v] - rc.positions[v]).length());
                 // Tangent masks are eigenvectors at smooth vertices and regular boundary
                 // vertices (3 triangles, 2 quads): the tangents scale, normals stay.
@@ -329,7 +345,12 @@ fn crease_vertices_lie_on_the_crease_curve_and_corners_stay() {
                 .filter(|&&e| topo.edge_sharpness[e as usize] > 0.0)
                 .map(|&e| topo.other_vertex(e as usize, v as u32))
                 .collect();
-            if sharp.len() == 2 && !topo.vertex_edges(v).iter().any(|&e| topo.is_boundary_edge(e as usize)) {
+            if sharp.len() == 2
+                && !topo
+                    .vertex_edges(v)
+                    .iter()
+                    .any(|&e| topo.is_boundary_edge(e as usize))
+            {
                 let expect = (p[sharp[0] as usize] + 4.0 * p[v] + p[sharp[1] as usize]) / 6.0;
                 assert!((l.positions[v] - expect).length() < 1e-12);
                 // The crease tangent is along the crease.
@@ -391,10 +412,16 @@ fn limit_stencils_reevaluate_moving_control_points() {
 #[test]
 fn limit_errors_name_the_problem() {
     let e = subdivide_limit(&generate::icosahedron(), &opts(Scheme::Midpoint, 1)).unwrap_err();
-    assert!(matches!(e, Error::InvalidArgument(ref s) if s.contains("midpoint")), "{e}");
+    assert!(
+        matches!(e, Error::InvalidArgument(ref s) if s.contains("midpoint")),
+        "{e}"
+    );
     // Catmull-Clark limit masks need quads: level 0 of the pyramid has triangles.
     let e = subdivide_limit(&generate::pyramid(), &opts(Scheme::CatmullClark, 0)).unwrap_err();
-    assert!(matches!(e, Error::InvalidArgument(ref s) if s.contains("face 1")), "{e}");
+    assert!(
+        matches!(e, Error::InvalidArgument(ref s) if s.contains("face 1")),
+        "{e}"
+    );
     assert!(subdivide_limit(&generate::pyramid(), &opts(Scheme::CatmullClark, 1)).is_ok());
     // Colours survive, at the refined values.
     let mut m = generate::cube();

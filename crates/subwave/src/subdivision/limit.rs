@@ -483,9 +483,11 @@ impl LimitStencils {
             )));
         }
         use crate::topology::VertexKind;
-        if let Some(v) = topo.vertex_kinds.iter().position(|k| {
-            matches!(k, VertexKind::NonManifold | VertexKind::Irregular)
-        }) {
+        if let Some(v) = topo
+            .vertex_kinds
+            .iter()
+            .position(|k| matches!(k, VertexKind::NonManifold | VertexKind::Irregular))
+        {
             return Err(Error::InvalidArgument(format!(
                 "vertex {v} is not manifold: its limit is undefined"
             )));
@@ -761,7 +763,10 @@ mod tests {
     fn assert_eigen(x: &[f64], s: &Mat, lambda: f64, what: &str) {
         let y = left_mul(x, s);
         for (a, b) in y.iter().zip(x) {
-            assert!((a - lambda * b).abs() < 1e-13, "{what}: {y:?} vs {lambda} {x:?}");
+            assert!(
+                (a - lambda * b).abs() < 1e-13,
+                "{what}: {y:?} vs {lambda} {x:?}"
+            );
         }
     }
 
@@ -837,7 +842,10 @@ mod tests {
             let theta = std::f64::consts::TAU / n as f64;
             let expect = 5.0 / 16.0
                 + (theta.cos() + (0.5 * theta).cos() * (2.0 * (9.0 + theta.cos())).sqrt()) / 16.0;
-            assert!((lambda - expect).abs() < 1e-13, "n = {n}: {lambda} vs {expect}");
+            assert!(
+                (lambda - expect).abs() < 1e-13,
+                "n = {n}: {lambda} vs {expect}"
+            );
             for t in [&t1, &t2] {
                 assert!(t.sum().abs() < 1e-13);
                 assert_eigen(&flat(t), &s, expect, "catmark tangent");
@@ -846,7 +854,10 @@ mod tests {
         // The regular case: (1, 4, 1) ⊗ (1, 4, 1) / 36.
         let mut m = VertexMask::default();
         catmark_smooth_limit(4, &mut m);
-        assert_eq!((m.vertex, m.edges[0], m.faces[0]), (16.0 / 36.0, 4.0 / 36.0, 1.0 / 36.0));
+        assert_eq!(
+            (m.vertex, m.edges[0], m.faces[0]),
+            (16.0 / 36.0, 4.0 / 36.0, 1.0 / 36.0)
+        );
     }
 
     /// Local matrix of a boundary vertex with `k` faces (`k + 1` edges, the first and last
@@ -881,12 +892,21 @@ mod tests {
                 rule: Rule::Crease,
                 crease_ends: [0, k],
             };
-            for scheme in [LimitScheme::Loop(LoopWeights::Loop), LimitScheme::CatmullClark] {
+            for scheme in [
+                LimitScheme::Loop(LoopWeights::Loop),
+                LimitScheme::CatmullClark,
+            ] {
                 let (mut p, mut t1, mut t2) = Default::default();
                 limit_masks(scheme, &n, &mut p, &mut t1, &mut t2);
                 assert!((p.sum() - 1.0).abs() < 1e-15);
-                assert_eq!((p.vertex, p.edges[0], p.edges[k]), (2.0 / 3.0, 1.0 / 6.0, 1.0 / 6.0));
-                assert!(t1.sum().abs() < 1e-14 && t2.sum().abs() < 1e-13, "{scheme:?} {k}");
+                assert_eq!(
+                    (p.vertex, p.edges[0], p.edges[k]),
+                    (2.0 / 3.0, 1.0 / 6.0, 1.0 / 6.0)
+                );
+                assert!(
+                    t1.sum().abs() < 1e-14 && t2.sum().abs() < 1e-13,
+                    "{scheme:?} {k}"
+                );
                 // The cross tangent points into the faces (positive on interior edges).
                 if k > 1 {
                     assert!(t2.edges[1..k].iter().all(|&w| w > 0.0), "{scheme:?} {k}");
@@ -896,7 +916,13 @@ mod tests {
             // and the regular (k = 3) Loop cross tangent is an eigenvector of the fan.
             let s = loop_crease_matrix(k);
             let (mut p, mut t1, mut t2) = Default::default();
-            limit_masks(LimitScheme::Loop(LoopWeights::Loop), &n, &mut p, &mut t1, &mut t2);
+            limit_masks(
+                LimitScheme::Loop(LoopWeights::Loop),
+                &n,
+                &mut p,
+                &mut t1,
+                &mut t2,
+            );
             assert_eigen(&flat(&p)[..k + 2], &s, 1.0, "crease position");
             assert_eigen(&flat(&t1)[..k + 2], &s, 0.5, "crease tangent");
             if k == 3 {
