@@ -13,7 +13,7 @@ use subwave::subdivision::{BoundaryMode, Refinement, Scheme, SubdivideOptions};
 
 /// OpenSubdiv's limit position and normal at corner `k` of every base face, in face-corner
 /// order.
-fn osd_corner_limits(mesh: &Mesh, loop_scheme: bool) -> Vec<(DVec3, DVec3)> {
+fn osd_corner_limits(mesh: &Mesh, loop_scheme: bool, isolation: usize) -> Vec<(DVec3, DVec3)> {
     let arities: Vec<u32> = mesh.face_offsets.windows(2).map(|w| w[1] - w[0]).collect();
     let mut descriptor =
         far::TopologyDescriptor::new(mesh.positions.len(), &arities, &mesh.face_indices).unwrap();
@@ -32,7 +32,13 @@ fn osd_corner_limits(mesh: &Mesh, loop_scheme: bool) -> Vec<(DVec3, DVec3)> {
         ..Default::default()
     };
     let mut refiner = far::TopologyRefiner::new(descriptor, options).unwrap();
-    refiner.refine_adaptive(far::AdaptiveRefinementOptions::default(), &[]);
+    refiner.refine_adaptive(
+        far::AdaptiveRefinementOptions {
+            isolation_level: isolation,
+            ..Default::default()
+        },
+        &[],
+    );
     let (s_quad, t_quad) = ([0.0f32, 1.0, 1.0, 0.0], [0.0f32, 0.0, 1.0, 1.0]);
     let (s_tri, t_tri) = ([0.0f32, 1.0, 0.0], [0.0f32, 0.0, 1.0]);
     let locations: Vec<far::LocationArray> = (0..mesh.num_faces())
@@ -65,9 +71,9 @@ fn osd_corner_limits(mesh: &Mesh, loop_scheme: bool) -> Vec<(DVec3, DVec3)> {
     (0..table.len())
         .map(|i| {
             let (mut p, mut a, mut b) = (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO);
-            let o = offsets[i] as usize;
+            let o = usize::from(offsets[i]);
             for k in o..o + sizes[i] as usize {
-                let q = mesh.positions[indices[k] as usize];
+                let q = mesh.positions[usize::from(indices[k])];
                 p += w[k] as f64 * q;
                 a += du[k] as f64 * q;
                 b += dv[k] as f64 * q;
@@ -130,13 +136,23 @@ fn limit_positions_and_normals_match_opensubdiv() {
         let r = Refinement::build(&mesh, &opts, false).unwrap();
         let topo = r.finest_topology();
         let ours = r.limit(LimitScheme::from_options(&opts).unwrap()).unwrap();
-        let theirs = osd_corner_limits(&mesh, scheme == Scheme::Loop);
+        // OpenSubdiv's patches approximate the limit at irregular boundary and crease
+        // vertices (the grid's valence-2 corners, the creased cube's crease vertices), with an
+        // error that halves with each isolation level: compare at levels 6 and 10 and require
+        // agreement or convergence to subwave's value (which is invariant under refinement,
+        // tests/limit.rs).
+        let theirs6 = osd_corner_limits(&mesh, scheme == Scheme::Loop, 6);
+        let theirs = osd_corner_limits(&mesh, scheme == Scheme::Loop, 10);
+        // Normals from level 4: deeper patches lose f32 precision in their derivatives.
+        let theirs4 = osd_corner_limits(&mesh, scheme == Scheme::Loop, 4);
         assert_eq!(theirs.len(), mesh.face_indices.len());
-        let (mut dp, mut dn) = (0.0f64, 0.0f64);
+        let (mut dp, mut dp6, mut dn) = (0.0f64, 0.0f64, 0.0f64);
         for (c, &v) in mesh.face_indices.iter().enumerate() {
             let v = v as usize;
-            let (p, n) = theirs[c];
-            dp = dp.max((p - ours.positions[v]).length());
+            let (p, n) = (theirs[c].0, theirs4[c].1);
+            dp6 = dp6.max((theirs6[c].0 - ours.positions[v]).length());
+            let d = (p - ours.positions[v]).length();
+            dp = dp.max(d);
             // Normals are one-sided at creases: compare at smooth vertices.
             let smooth = topo
                 .vertex_edges(v)
@@ -146,8 +162,13 @@ fn limit_positions_and_normals_match_opensubdiv() {
                 dn = dn.max((n - ours.normals[v]).length());
             }
         }
-        eprintln!("{name}: max position difference {dp:.2e}, normal difference {dn:.2e}");
-        assert!(dp < 1e-5, "{name}: positions differ by {dp}");
-        assert!(dn < 1e-4, "{name}: normals differ by {dn}");
+        eprintln!(
+            "{name}: max position difference {dp:.2e} (isolation 10), {dp6:.2e} (6); normal difference {dn:.2e}"
+        );
+        assert!(
+            dp < 1e-5 || dp < dp6 / 10.0,
+            "{name}: positions differ by {dp} (isolation 10), {dp6} (6)"
+        );
+        assert!(dn < 1e-3, "{name}: normals differ by {dn}");
     }
 }

@@ -287,8 +287,7 @@ fn normals_are_unit_orthogonal_and_outward() {
         let (r, l) = limit_of(&m, &o);
         let fine = mesh_normals(&r.positions, &r.to_mesh());
         let topo = r.finest_topology();
-        for v in 0..r.positions.len() {
-            let n = l.normals[v];
+        for (v, &n) in l.normals.iter().enumerate() {
             assert!((n.length() - 1.0).abs() < 1e-12, "{name}: |n| of {v}");
             for t in [l.tangents1[v], l.tangents2[v]] {
                 assert!(n.dot(t).abs() < 1e-12 * t.length().max(1.0), "{name}");
