@@ -430,3 +430,38 @@ fn limit_errors_name_the_problem() {
     assert_eq!(out.colors, plain.colors);
     assert_eq!(out.face_indices, plain.face_indices);
 }
+
+#[test]
+fn semi_sharp_creases_are_exact_once_relaxed() {
+    // Sharpness 1.5 on the loop around one cube face: after 2 levels every sharpness is 0, so
+    // the limit is exact (invariant); after 1 level the edges keep sharpness 0.5 and their
+    // vertices are projected as crease vertices (OpenSubdiv's `PrimvarRefiner::Limit`).
+    let mut m = generate::cube();
+    m.edge_tags = [[0u32, 2], [2, 3], [3, 1], [1, 0]]
+        .iter()
+        .map(|&v| EdgeTag {
+            vertices: v,
+            sharpness: 1.5,
+        })
+        .collect();
+    let (r2, a) = limit_of(&m, &opts(Scheme::CatmullClark, 2));
+    let (_, b) = limit_of(&m, &opts(Scheme::CatmullClark, 3));
+    for v in 0..r2.positions.len() {
+        assert!((a.positions[v] - b.positions[v]).length() < 1e-12);
+    }
+    let (r1, l1) = limit_of(&m, &opts(Scheme::CatmullClark, 1));
+    let topo = r1.finest_topology();
+    let sharp: Vec<u32> = topo
+        .vertex_edges(0)
+        .iter()
+        .filter(|&&e| topo.edge_sharpness[e as usize] > 0.0)
+        .map(|&e| topo.other_vertex(e as usize, 0))
+        .collect();
+    assert_eq!(sharp.len(), 2);
+    let p = &r1.positions;
+    let crease = (p[sharp[0] as usize] + 4.0 * p[0] + p[sharp[1] as usize]) / 6.0;
+    assert!((l1.positions[0] - crease).length() < 1e-12);
+    // ... which is not the exact limit (0.19 away on this cube of side 2).
+    let d = (l1.positions[0] - a.positions[0]).length();
+    assert!(d > 1e-4 && d < 0.5, "{d}");
+}
