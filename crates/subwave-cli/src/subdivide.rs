@@ -3,7 +3,7 @@
 use std::time::Instant;
 
 use anyhow::Result;
-use subwave::subdivision::limit::subdivide_limit;
+use subwave::subdivision::limit::subdivide_limit_positions;
 use subwave::subdivision::loop_scheme::LoopWeights;
 use subwave::subdivision::rules::Creasing;
 use subwave::subdivision::{subdivide, BoundaryMode, Scheme, SubdivideOptions};
@@ -88,7 +88,7 @@ pub fn run(args: &SubdivideArgs) -> Result<()> {
     };
     let t = Instant::now();
     let out = if args.limit {
-        subdivide_limit(&mesh, &opts).map(|(m, _)| m)
+        subdivide_limit_positions(&mesh, &opts)
     } else {
         subdivide(&mesh, &opts)
     }

@@ -3,7 +3,9 @@
 
 use glam::DVec3;
 use subwave::generate;
-use subwave::subdivision::limit::{subdivide_limit, LimitScheme, LimitSurface};
+use subwave::subdivision::limit::{
+    subdivide_limit, subdivide_limit_positions, LimitScheme, LimitSurface,
+};
 use subwave::subdivision::loop_scheme::LoopWeights;
 use subwave::subdivision::{subdivide, BoundaryMode, Refinement, Scheme, SubdivideOptions};
 use subwave::{EdgeTag, Error, Mesh, SHARPNESS_INFINITE};
@@ -464,4 +466,44 @@ fn semi_sharp_creases_are_exact_once_relaxed() {
     // ... which is not the exact limit (0.19 away on this cube of side 2).
     let d = (l1.positions[0] - a.positions[0]).length();
     assert!(d > 1e-4 && d < 0.5, "{d}");
+}
+
+#[test]
+fn fast_paths_agree_with_the_general_one() {
+    for (name, m, o) in invariance_cases() {
+        for levels in [o.levels, o.levels + 2] {
+            let o = SubdivideOptions { levels, ..o };
+            let (_, general) = limit_of(&m, &o);
+            let (out, fast) = subdivide_limit(&m, &o).unwrap();
+            assert_eq!(general, fast, "{name} {levels}");
+            assert_eq!(out.positions, fast.positions);
+            let positions = subdivide_limit_positions(&m, &o).unwrap();
+            // Unordered 1-rings sum the same weights in another order.
+            for (a, b) in positions.positions.iter().zip(&fast.positions) {
+                assert!((*a - *b).length() < 1e-14, "{name} {levels}");
+            }
+            assert_eq!(positions.face_indices, out.face_indices);
+        }
+    }
+}
+
+#[test]
+#[ignore = "timing"]
+fn timing_limit() {
+    use std::time::Instant;
+    let m = generate::icosphere(4);
+    let o = opts(Scheme::Loop, 3);
+    let t = Instant::now();
+    let r = subdivide(&m, &o).unwrap();
+    eprintln!(
+        "subdivide {:?} ({} vertices)",
+        t.elapsed(),
+        r.positions.len()
+    );
+    let t = Instant::now();
+    let _ = subdivide_limit(&m, &o).unwrap();
+    eprintln!("subdivide_limit {:?}", t.elapsed());
+    let t = Instant::now();
+    let _ = subdivide_limit_positions(&m, &o).unwrap();
+    eprintln!("subdivide_limit_positions {:?}", t.elapsed());
 }

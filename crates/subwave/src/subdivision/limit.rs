@@ -50,6 +50,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::loop_scheme::{LoopRules, LoopWeights};
+use super::refine::{self, Split};
 use super::rules::{Rule, VertexMask};
 use super::stencil::StencilTable;
 use super::{Refinement, Scheme, SubdivideOptions};
@@ -465,121 +466,16 @@ impl LimitStencils {
                     .into(),
             ));
         }
-        let arity = match scheme {
-            LimitScheme::Loop(_) => 3,
-            LimitScheme::CatmullClark => 4,
-        };
-        if let Some(f) = (0..topo.num_faces()).find(|&f| topo.face_vertices(f).len() != arity) {
-            return Err(Error::InvalidArgument(format!(
-                "face {f} has {} vertices: {} limit masks need {}{}",
-                topo.face_vertices(f).len(),
-                if arity == 3 { "loop" } else { "catmull-clark" },
-                if arity == 3 { "triangles" } else { "quads" },
-                if arity == 4 {
-                    " (refine at least one level first)"
-                } else {
-                    ""
-                }
-            )));
-        }
-        use crate::topology::VertexKind;
-        if let Some(v) = topo
-            .vertex_kinds
-            .iter()
-            .position(|k| matches!(k, VertexKind::NonManifold | VertexKind::Irregular))
-        {
-            return Err(Error::InvalidArgument(format!(
-                "vertex {v} is not manifold: its limit is undefined"
-            )));
-        }
-        let nv = topo.num_vertices as usize;
-        let parts: Vec<Part> = (0..nv.div_ceil(CHUNK))
-            .into_par_iter()
-            .map(|c| {
-                let mut part = Part::default();
-                let mut masks: [VertexMask; 3] = Default::default();
-                let mut sharp = Vec::new();
-                let mut ring = Vec::new();
-                let mut opposite = Vec::new();
-                for v in c * CHUNK..((c + 1) * CHUNK).min(nv) {
-                    let edges = topo.vertex_edges(v);
-                    if edges.is_empty() {
-                        for k in 0..3 {
-                            part.sizes[k].push(u32::from(k == 0));
-                        }
-                        part.indices[0].push(v as u32);
-                        part.weights[0].push(1.0);
-                        continue;
-                    }
-                    sharp.clear();
-                    sharp.extend(edges.iter().map(|&e| topo.edge_sharpness[e as usize]));
-                    let faces = topo.vertex_faces(v);
-                    let n = LimitNeighborhood::from_sharpness(
-                        &sharp,
-                        topo.vertex_sharpness[v],
-                        faces.len(),
-                    );
-                    let [pos, t1, t2] = &mut masks;
-                    limit_masks(scheme, &n, pos, t1, t2);
-                    ring.clear();
-                    ring.extend(topo.ring(v));
-                    opposite.clear();
-                    for (&f, &i) in faces.iter().zip(topo.vertex_face_corners(v)) {
-                        let fv = topo.face_vertices(f as usize);
-                        opposite.push(fv[(i as usize + 2) % fv.len()]);
-                    }
-                    for (k, m) in masks.iter().enumerate() {
-                        let start = part.indices[k].len();
-                        let (idx, w) = (&mut part.indices[k], &mut part.weights[k]);
-                        let mut add = |i: u32, x: f64| {
-                            if x == 0.0 {
-                                return;
-                            }
-                            if let Some(p) = idx[start..].iter().position(|&y| y == i) {
-                                w[start + p] += x;
-                            } else {
-                                idx.push(i);
-                                w.push(x);
-                            }
-                        };
-                        // Small weights first, as OpenSubdiv sums them.
-                        for (&o, &x) in opposite.iter().zip(&m.faces) {
-                            add(o, x);
-                        }
-                        for (&r, &x) in ring.iter().zip(&m.edges) {
-                            add(r, x);
-                        }
-                        add(v as u32, m.vertex);
-                        part.sizes[k].push((idx.len() - start) as u32);
-                    }
-                }
-                part
-            })
-            .collect();
-        let table = |k: usize| {
-            let total: usize = parts.iter().map(|p| p.indices[k].len()).sum();
-            let mut t = StencilTable {
-                num_sources: nv as u32,
-                offsets: Vec::with_capacity(nv + 1),
-                indices: Vec::with_capacity(total),
-                weights: Vec::with_capacity(total),
-            };
-            t.offsets.push(0);
-            for p in &parts {
-                for &s in &p.sizes[k] {
-                    let last = *t.offsets.last().unwrap_or(&0);
-                    t.offsets.push(last + s);
-                }
-                t.indices.extend_from_slice(&p.indices[k]);
-                t.weights.extend_from_slice(&p.weights[k]);
-            }
-            t
-        };
-        Ok(LimitStencils {
-            position: table(0),
-            tangent1: table(1),
-            tangent2: table(2),
-        })
+        build_tables(topo, scheme, true)
+    }
+
+    /// The limit position stencils only ([`LimitStencils::position`]); the position masks are
+    /// symmetric, so `topo`'s 1-rings need not be ordered.
+    ///
+    /// # Errors
+    /// As [`LimitStencils::build`], except for the ring order.
+    pub fn positions(topo: &Topology, scheme: LimitScheme) -> Result<StencilTable> {
+        Ok(build_tables(topo, scheme, false)?.position)
     }
 
     /// The limit surface of the level's `positions`.
@@ -602,6 +498,134 @@ impl LimitStencils {
             normals,
         }
     }
+}
+
+/// The three limit stencil tables of `topo` (the tangent tables empty unless `tangents`).
+fn build_tables(topo: &Topology, scheme: LimitScheme, tangents: bool) -> Result<LimitStencils> {
+    let arity = match scheme {
+        LimitScheme::Loop(_) => 3,
+        LimitScheme::CatmullClark => 4,
+    };
+    if let Some(f) = (0..topo.num_faces()).find(|&f| topo.face_vertices(f).len() != arity) {
+        return Err(Error::InvalidArgument(format!(
+            "face {f} has {} vertices: {} limit masks need {}{}",
+            topo.face_vertices(f).len(),
+            if arity == 3 { "loop" } else { "catmull-clark" },
+            if arity == 3 { "triangles" } else { "quads" },
+            if arity == 4 {
+                " (refine at least one level first)"
+            } else {
+                ""
+            }
+        )));
+    }
+    use crate::topology::VertexKind;
+    if let Some(v) = topo
+        .vertex_kinds
+        .iter()
+        .position(|k| matches!(k, VertexKind::NonManifold | VertexKind::Irregular))
+    {
+        return Err(Error::InvalidArgument(format!(
+            "vertex {v} is not manifold: its limit is undefined"
+        )));
+    }
+    let nv = topo.num_vertices as usize;
+    let parts: Vec<Part> = (0..nv.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let mut part = Part::default();
+            let mut masks: [VertexMask; 3] = Default::default();
+            let mut sharp = Vec::new();
+            let mut ring = Vec::new();
+            let mut opposite = Vec::new();
+            for v in c * CHUNK..((c + 1) * CHUNK).min(nv) {
+                let edges = topo.vertex_edges(v);
+                if edges.is_empty() {
+                    for k in 0..if tangents { 3 } else { 1 } {
+                        part.sizes[k].push(u32::from(k == 0));
+                    }
+                    part.indices[0].push(v as u32);
+                    part.weights[0].push(1.0);
+                    continue;
+                }
+                sharp.clear();
+                sharp.extend(edges.iter().map(|&e| topo.edge_sharpness[e as usize]));
+                let faces = topo.vertex_faces(v);
+                let n = LimitNeighborhood::from_sharpness(
+                    &sharp,
+                    topo.vertex_sharpness[v],
+                    faces.len(),
+                );
+                let [pos, t1, t2] = &mut masks;
+                limit_masks(scheme, &n, pos, t1, t2);
+                let masks = &masks[..if tangents { 3 } else { 1 }];
+                ring.clear();
+                ring.extend(topo.ring(v));
+                opposite.clear();
+                for (&f, &i) in faces.iter().zip(topo.vertex_face_corners(v)) {
+                    let fv = topo.face_vertices(f as usize);
+                    opposite.push(fv[(i as usize + 2) % fv.len()]);
+                }
+                for (k, m) in masks.iter().enumerate() {
+                    let start = part.indices[k].len();
+                    let (idx, w) = (&mut part.indices[k], &mut part.weights[k]);
+                    let mut add = |i: u32, x: f64| {
+                        if x == 0.0 {
+                            return;
+                        }
+                        if let Some(p) = idx[start..].iter().position(|&y| y == i) {
+                            w[start + p] += x;
+                        } else {
+                            idx.push(i);
+                            w.push(x);
+                        }
+                    };
+                    // Small weights first, as OpenSubdiv sums them.
+                    for (&o, &x) in opposite.iter().zip(&m.faces) {
+                        add(o, x);
+                    }
+                    for (&r, &x) in ring.iter().zip(&m.edges) {
+                        add(r, x);
+                    }
+                    add(v as u32, m.vertex);
+                    part.sizes[k].push((idx.len() - start) as u32);
+                }
+            }
+            part
+        })
+        .collect();
+    let table = |k: usize| {
+        let total: usize = parts.iter().map(|p| p.indices[k].len()).sum();
+        let mut t = StencilTable {
+            num_sources: nv as u32,
+            offsets: Vec::with_capacity(nv + 1),
+            indices: Vec::with_capacity(total),
+            weights: Vec::with_capacity(total),
+        };
+        t.offsets.push(0);
+        for p in &parts {
+            for &s in &p.sizes[k] {
+                let last = *t.offsets.last().unwrap_or(&0);
+                t.offsets.push(last + s);
+            }
+            t.indices.extend_from_slice(&p.indices[k]);
+            t.weights.extend_from_slice(&p.weights[k]);
+        }
+        t
+    };
+    Ok(LimitStencils {
+        position: table(0),
+        tangent1: if tangents {
+            table(1)
+        } else {
+            StencilTable::default()
+        },
+        tangent2: if tangents {
+            table(2)
+        } else {
+            StencilTable::default()
+        },
+    })
 }
 
 impl Refinement {
@@ -653,19 +677,42 @@ impl Refinement {
     }
 }
 
-/// [`super::subdivide`], with the finest level's vertices moved to their limit positions
-/// (Maret §3.4); also returns the limit surface (positions, tangents, unit normals — the
-/// [`Mesh`] type has no normal attribute). Colours and texture coordinates keep their refined
-/// (not limit) values.
-///
-/// # Errors
-/// As [`Refinement::build`]; [`Error::InvalidArgument`] for a scheme without limit masks
-/// (midpoint, bilinear) and for Catmull-Clark with 0 levels on a mesh that is not all quads.
-pub fn subdivide_limit(mesh: &Mesh, opts: &SubdivideOptions) -> Result<(Mesh, LimitSurface)> {
-    let scheme = LimitScheme::from_options(opts)?;
+/// The finest level's topology, refined from the last level kept in `r` (no edge matching;
+/// the same tables as [`Refinement::finest_topology`], by the ordering contract of
+/// [`super::refine`]), 1-rings ordered if `order_rings`.
+fn finest_topology_from_parent(
+    r: &Refinement,
+    opts: &SubdivideOptions,
+    order_rings: bool,
+) -> Topology {
+    let levels = opts.levels as usize;
+    if levels == 0 || r.topologies.len() != levels {
+        return r.finest_topology();
+    }
+    let parent = &r.topologies[levels - 1];
+    let split = if opts.scheme == Scheme::Loop {
+        Split::Triangles
+    } else {
+        Split::Polygons
+    };
+    let (mut child, halves) = refine::refine_topology(parent, split, order_rings);
+    super::child_sharpness(parent, &mut child, &halves, opts.creasing);
+    child
+}
+
+/// The finest level of `mesh` refined by `opts` as a mesh whose positions are `limit(r,
+/// topology)`, with colours and texture coordinates refined.
+fn subdivide_with(
+    mesh: &Mesh,
+    opts: &SubdivideOptions,
+    order_rings: bool,
+    limit: impl FnOnce(&Refinement, &Topology) -> Result<Vec<DVec3>>,
+) -> Result<Mesh> {
     let carry = mesh.colors.is_some() || mesh.uvs.is_some();
-    let r = Refinement::build_with(mesh, opts, carry, carry || opts.levels == 0)?;
-    let limit = r.limit(scheme)?;
+    let r = Refinement::build_with(mesh, opts, carry, true)?;
+    let topo = finest_topology_from_parent(&r, opts, order_rings);
+    let positions = limit(&r, &topo)?;
+    drop(topo);
     let mut out = Mesh::new();
     if opts.levels == 0 {
         out.colors.clone_from(&mesh.colors);
@@ -678,12 +725,42 @@ pub fn subdivide_limit(mesh: &Mesh, opts: &SubdivideOptions) -> Result<(Mesh, Li
             out.uvs = Some(r.evaluate(t)?);
         }
     }
-    out.positions = limit.positions.clone();
+    out.positions = positions;
     out.face_offsets = r.face_offsets;
     out.face_indices = r.face_vertices;
     out.edge_tags = r.edge_tags;
     out.vertex_tags = r.vertex_tags;
-    Ok((out, limit))
+    Ok(out)
+}
+
+/// [`super::subdivide`], with the finest level's vertices moved to their limit positions
+/// (Maret §3.4); also returns the limit surface (positions, tangents, unit normals — the
+/// [`Mesh`] type has no normal attribute). Colours and texture coordinates keep their refined
+/// (not limit) values.
+///
+/// # Errors
+/// As [`Refinement::build`]; [`Error::InvalidArgument`] for a scheme without limit masks
+/// (midpoint, bilinear) and for Catmull-Clark with 0 levels on a mesh that is not all quads.
+pub fn subdivide_limit(mesh: &Mesh, opts: &SubdivideOptions) -> Result<(Mesh, LimitSurface)> {
+    let scheme = LimitScheme::from_options(opts)?;
+    let mut surface = LimitSurface::default();
+    let out = subdivide_with(mesh, opts, true, |r, topo| {
+        surface = LimitStencils::build(topo, scheme)?.evaluate(&r.positions);
+        Ok(surface.positions.clone())
+    })?;
+    Ok((out, surface))
+}
+
+/// [`subdivide_limit`] without tangents and normals (faster: the finest level's 1-rings need
+/// no ordering).
+///
+/// # Errors
+/// As [`subdivide_limit`].
+pub fn subdivide_limit_positions(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Mesh> {
+    let scheme = LimitScheme::from_options(opts)?;
+    subdivide_with(mesh, opts, false, |r, topo| {
+        Ok(LimitStencils::positions(topo, scheme)?.apply(&r.positions))
+    })
 }
 
 #[cfg(test)]
