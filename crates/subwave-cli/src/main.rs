@@ -147,6 +147,11 @@ pub struct SubdivideArgs {
     /// β of Loop's smooth vertex rule.
     #[arg(long, value_enum, default_value = "loop")]
     pub loop_weights: subdivide::LoopWeightsArg,
+    /// Move the finest level's vertices to their limit positions (loop and catmull-clark;
+    /// Maret §3.4, OpenSubdiv's limit masks). Only positions are written: the mesh formats
+    /// here carry no normals (glb computes its own from the faces).
+    #[arg(long)]
+    pub limit: bool,
 }
 
 /// Arguments of `subwave info`.

@@ -4,6 +4,7 @@ use std::io::Write;
 use std::time::Instant;
 
 use anyhow::Result;
+use subwave::subdivision::limit::subdivide_limit_positions;
 use subwave::subdivision::loop_scheme::LoopWeights;
 use subwave::subdivision::rules::Creasing;
 use subwave::subdivision::{subdivide, BoundaryMode, Scheme, SubdivideOptions};
@@ -122,16 +123,21 @@ pub fn run(args: &SubdivideArgs) -> Result<()> {
         sharp_angle: args.sharp_angle,
     };
     let t = Instant::now();
-    let out =
-        subdivide(&mesh, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", args.mesh.display()))?;
+    let out = if args.limit {
+        subdivide_limit_positions(&mesh, &opts)
+    } else {
+        subdivide(&mesh, &opts)
+    }
+    .map_err(|e| anyhow::anyhow!("{}: {e}", args.mesh.display()))?;
     let ms = t.elapsed().as_secs_f64() * 1e3;
     subwave::io::write_mesh(&out, &args.output, args.to)?;
     if args.output.as_os_str() != "-" {
         writeln!(
             std::io::stdout(),
-            "{} levels of {}: {} vertices, {} faces -> {} vertices, {} faces in {ms:.1} ms; wrote {}",
+            "{} levels of {}{}: {} vertices, {} faces -> {} vertices, {} faces in {ms:.1} ms; wrote {}",
             args.levels,
             opts.scheme.name(),
+            if args.limit { " (at the limit)" } else { "" },
             mesh.num_vertices(),
             mesh.num_faces(),
             out.num_vertices(),

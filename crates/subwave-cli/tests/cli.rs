@@ -838,3 +838,49 @@ fn subdivide_butterfly() {
         "{err}"
     );
 }
+
+#[test]
+fn subdivide_limit_writes_limit_positions() {
+    let d = tmp();
+    let input = write(d.path(), "cube.obj", &generate::cube());
+    let out = d.path().join("limit.obj");
+    let out_s = out.to_str().unwrap();
+    let args = [
+        "subdivide",
+        &input,
+        "-o",
+        out_s,
+        "--scheme",
+        "catmull-clark",
+        "--levels",
+        "2",
+        "--limit",
+    ];
+    assert!(ok(&args).contains("at the limit"));
+    let got = subwave::io::read_mesh(&out, None).unwrap();
+    let opts = subwave::subdivision::SubdivideOptions {
+        scheme: subwave::subdivision::Scheme::CatmullClark,
+        levels: 2,
+        ..Default::default()
+    };
+    let (expect, _) =
+        subwave::subdivision::limit::subdivide_limit(&generate::cube(), &opts).unwrap();
+    assert_eq!(got.num_vertices(), expect.num_vertices());
+    for (a, b) in got.positions.iter().zip(&expect.positions) {
+        assert!((*a - *b).length() < 1e-6, "{a} vs {b}");
+    }
+    // Without --limit the vertices differ (the limit test is not vacuous).
+    ok(&args[..args.len() - 1]);
+    let plain = subwave::io::read_mesh(&out, None).unwrap();
+    assert!(plain.positions[0].distance(got.positions[0]) > 1e-3);
+    let err = fails(&[
+        "subdivide",
+        &input,
+        "-o",
+        out_s,
+        "--scheme",
+        "midpoint",
+        "--limit",
+    ]);
+    assert!(err.contains("midpoint"), "{err}");
+}

@@ -18,6 +18,8 @@ pub mod butterfly;
 pub mod catmull_clark;
 pub mod curves;
 pub mod face_varying;
+
+pub mod limit;
 pub mod loop_scheme;
 pub mod midpoint;
 pub mod profile;
