@@ -8,7 +8,9 @@
 //! - [`topology`]: edges, ordered 1-rings, boundary loops, components and tags, as flat tables;
 //! - [`validate`]: the report behind `subwave info` and the checks behind every algorithm;
 //! - [`io`]: OBJ, OFF, PLY, STL readers; OBJ, OFF, PLY, GLB writers;
-//! - [`generate`]: meshes the tests and the demo build themselves.
+//! - [`generate`]: meshes the tests and the demo build themselves;
+//! - [`wavelet`]: wavelet transforms on subdivision hierarchies (Bertram et al.'s B-spline
+//!   wavelets).
 #![warn(missing_docs)]
 
 pub mod error;
@@ -18,6 +20,7 @@ pub mod mesh;
 pub mod subdivision;
 pub mod topology;
 pub mod validate;
+pub mod wavelet;
 
 pub use error::{Error, Location, MeshError, Result};
 pub use glam::DVec3;

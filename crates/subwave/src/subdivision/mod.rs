@@ -44,6 +44,12 @@ pub enum Scheme {
     CatmullClark,
     /// Bilinear (any polygons, 1-to-n quads, face points at centroids).
     Bilinear,
+    /// Generalized bicubic B-splines (MLCA): Bertram et al.'s cubic wavelet synthesis with
+    /// zero details ([`crate::wavelet::bertram`]); Catmull-Clark at regular vertices.
+    Bicubic,
+    /// Generalized biquintic B-splines: Bertram et al.'s quintic wavelet synthesis with zero
+    /// details ([`crate::wavelet::bertram`]).
+    Biquintic,
 }
 
 impl Scheme {
@@ -54,6 +60,19 @@ impl Scheme {
             Scheme::Midpoint => "midpoint",
             Scheme::CatmullClark => "catmull-clark",
             Scheme::Bilinear => "bilinear",
+            Scheme::Bicubic => "bicubic",
+            Scheme::Biquintic => "biquintic",
+        }
+    }
+
+    /// The B-spline degree of the schemes computed by wavelet synthesis
+    /// ([`crate::wavelet::bertram`]), `None` for stencil-based schemes.
+    pub fn bspline_degree(self) -> Option<crate::wavelet::bertram::Degree> {
+        use crate::wavelet::bertram::Degree;
+        match self {
+            Scheme::Bicubic => Some(Degree::Cubic),
+            Scheme::Biquintic => Some(Degree::Quintic),
+            _ => None,
         }
     }
 }
@@ -124,7 +143,9 @@ fn rules_for(opts: &SubdivideOptions, mesh: &Mesh) -> Box<dyn Rules> {
                 Split::Polygons
             },
         }),
-        Scheme::Bilinear => Box::new(MidpointRules {
+        // The B-spline schemes refine like bilinear; their positions come from the wavelet
+        // synthesis (`Refinement::build_with`).
+        Scheme::Bilinear | Scheme::Bicubic | Scheme::Biquintic => Box::new(MidpointRules {
             split: Split::Polygons,
         }),
         Scheme::CatmullClark => Box::new(CatmullClarkRules),
@@ -194,6 +215,9 @@ impl Refinement {
         keep_topologies: bool,
     ) -> Result<Refinement> {
         mesh.check_indices()?;
+        if let Some(degree) = opts.scheme.bspline_degree() {
+            return bspline_refinement(mesh, opts, degree, keep_stencils, keep_topologies);
+        }
         if opts.scheme == Scheme::Loop {
             require_arity(
                 mesh,
@@ -364,6 +388,36 @@ impl Refinement {
     }
 }
 
+/// [`Refinement`] of the B-spline schemes: bilinear topology, positions from the wavelet
+/// synthesis with zero details. No stencil tables (the synthesis is a sequence of lifts).
+fn bspline_refinement(
+    mesh: &Mesh,
+    opts: &SubdivideOptions,
+    degree: crate::wavelet::bertram::Degree,
+    keep_stencils: bool,
+    keep_topologies: bool,
+) -> Result<Refinement> {
+    if keep_stencils {
+        return Err(Error::InvalidArgument(format!(
+            "{} is computed by wavelet lifting and has no stencil tables",
+            opts.scheme.name()
+        )));
+    }
+    let bilinear = SubdivideOptions {
+        scheme: Scheme::Bilinear,
+        ..*opts
+    };
+    let mut r = Refinement::build_with(mesh, &bilinear, false, true)?;
+    if opts.levels > 0 {
+        let w = crate::wavelet::bertram::BSplineWavelet::new(degree);
+        r.positions = w.subdivide(&r.topologies, &mesh.positions)?;
+    }
+    if !keep_topologies {
+        r.topologies.clear();
+    }
+    Ok(r)
+}
+
 /// Sets the child level's sharpness from the parent's: each edge's halves by the creasing
 /// rule at their end, corners decremented; new edges and vertices are smooth.
 fn child_sharpness(
@@ -441,6 +495,9 @@ fn finest_tags(parent: &Topology, creasing: Creasing) -> (Vec<EdgeTag>, Vec<Vert
 /// # Errors
 /// As [`Refinement::build`].
 pub fn subdivide(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Mesh> {
+    if let Some(degree) = opts.scheme.bspline_degree() {
+        return crate::wavelet::bertram::subdivide_mesh(mesh, opts, degree);
+    }
     let carry = mesh.colors.is_some() || mesh.uvs.is_some();
     let r = Refinement::build_with(mesh, opts, carry, carry)?;
     let mut out = Mesh::new();
