@@ -20,6 +20,10 @@ pub enum SchemeArg {
     CatmullClark,
     /// Bilinear (any polygons, split into quads).
     Bilinear,
+    /// Generalized bicubic B-splines (MLCA, Bertram et al.'s cubic wavelet synthesis).
+    Bicubic,
+    /// Generalized biquintic B-splines (Bertram et al.'s quintic wavelet synthesis).
+    Biquintic,
 }
 
 /// Boundary treatment on the command line.
@@ -68,6 +72,8 @@ pub fn run(args: &SubdivideArgs) -> Result<()> {
             SchemeArg::Midpoint => Scheme::Midpoint,
             SchemeArg::CatmullClark => Scheme::CatmullClark,
             SchemeArg::Bilinear => Scheme::Bilinear,
+            SchemeArg::Bicubic => Scheme::Bicubic,
+            SchemeArg::Biquintic => Scheme::Biquintic,
         },
         levels: args.levels,
         boundary: match args.boundary {

@@ -123,11 +123,7 @@ const fn ilift(kind: LiftKind, a_num: i64, a_den: i64) -> IntLift {
 use LiftKind::{S, W};
 
 const LINEAR: [Lift; 2] = [lift(W, -0.5, 1.0), lift(S, 0.25, 1.0)];
-const CUBIC: [Lift; 3] = [
-    lift(S, -0.25, 1.0),
-    lift(W, -1.0, 1.0),
-    lift(S, 0.375, 2.0),
-];
+const CUBIC: [Lift; 3] = [lift(S, -0.25, 1.0), lift(W, -1.0, 1.0), lift(S, 0.375, 2.0)];
 const QUINTIC: [Lift; 4] = [
     lift(W, -1.0 / 6.0, 1.0),
     lift(S, -0.5625, 1.0),

@@ -113,7 +113,9 @@ fn eq_4_7_bicubic_analysis_rules() {
     let upd_v = |h: &mut Vec<DVec3>, cv: f64, cf: f64, ce: f64| {
         let old = h.clone();
         for v in 0..nv {
-            h[v] = cv * old[v] + cf * m(t.vertex_faces(v), fo, &old) + ce * m(t.vertex_edges(v), eo, &old);
+            h[v] = cv * old[v]
+                + cf * m(t.vertex_faces(v), fo, &old)
+                + ce * m(t.vertex_edges(v), eo, &old);
         }
     };
     let upd_e_f = |h: &mut Vec<DVec3>, ce: f64, cf: f64| {
@@ -126,7 +128,8 @@ fn eq_4_7_bicubic_analysis_rules() {
     upd_e_f(&mut h, 1.0, -0.5);
     let old = h.clone();
     for f in 0..t.num_faces() {
-        h[fo + f] = old[fo + f] + 4.0 * m(t.face_vertices(f), 0, &old) - 4.0 * m(t.face_edges(f), eo, &old);
+        h[fo + f] =
+            old[fo + f] + 4.0 * m(t.face_vertices(f), 0, &old) - 4.0 * m(t.face_edges(f), eo, &old);
     }
     let old = h.clone();
     for e in 0..ne {
@@ -153,7 +156,10 @@ fn perfect_reconstruction_float() {
                 let w = BSplineWavelet { degree, boundary };
                 let mut data = fine.clone();
                 w.analyze(&r.topologies, &mut data).unwrap();
-                assert!(max_diff(&data, &fine) > 1e-3, "{name} {degree:?}: analysis did nothing");
+                assert!(
+                    max_diff(&data, &fine) > 1e-3,
+                    "{name} {degree:?}: analysis did nothing"
+                );
                 w.synthesize(&r.topologies, &mut data).unwrap();
                 let err = max_diff(&data, &fine);
                 assert!(err <= 1e-12 * diag, "{name} {degree:?} {boundary:?}: {err}");
@@ -164,7 +170,13 @@ fn perfect_reconstruction_float() {
 
 fn to_int(p: &[DVec3], scale: f64) -> Vec<[i64; 3]> {
     p.iter()
-        .map(|x| [(x.x * scale).round() as i64, (x.y * scale).round() as i64, (x.z * scale).round() as i64])
+        .map(|x| {
+            [
+                (x.x * scale).round() as i64,
+                (x.y * scale).round() as i64,
+                (x.z * scale).round() as i64,
+            ]
+        })
         .collect()
 }
 
@@ -230,10 +242,20 @@ fn integer_transform_tracks_rescaled_float_transform() {
         let err = ints
             .iter()
             .zip(&floats)
-            .map(|(i, f)| (DVec3::new(i[0] as f64, i[1] as f64, i[2] as f64) - *f).abs().max_element())
+            .map(|(i, f)| {
+                (DVec3::new(i[0] as f64, i[1] as f64, i[2] as f64) - *f)
+                    .abs()
+                    .max_element()
+            })
             .fold(0.0, f64::max);
         assert!(err < 50.0, "{degree:?}: integer vs float {err}");
-        assert!(floats.iter().map(|f| f.abs().max_element()).fold(0.0, f64::max) > 1e5);
+        assert!(
+            floats
+                .iter()
+                .map(|f| f.abs().max_element())
+                .fold(0.0, f64::max)
+                > 1e5
+        );
     }
 }
 
@@ -355,11 +377,22 @@ fn bicubic_is_mlca_at_extraordinary_vertices() {
     let p = &mesh.positions;
     let (nv, ne) = (t.num_vertices as usize, t.num_edges());
     let fp: Vec<DVec3> = (0..t.num_faces())
-        .map(|f| t.face_vertices(f).iter().map(|&v| p[v as usize]).sum::<DVec3>() / 4.0)
+        .map(|f| {
+            t.face_vertices(f)
+                .iter()
+                .map(|&v| p[v as usize])
+                .sum::<DVec3>()
+                / 4.0
+        })
         .collect();
     for v in 0..nv {
         let ring: DVec3 = t.ring(v).map(|u| p[u as usize]).sum::<DVec3>() / 3.0;
-        let faces: DVec3 = t.vertex_faces(v).iter().map(|&f| fp[f as usize]).sum::<DVec3>() / 3.0;
+        let faces: DVec3 = t
+            .vertex_faces(v)
+            .iter()
+            .map(|&f| fp[f as usize])
+            .sum::<DVec3>()
+            / 3.0;
         let want = 0.5 * p[v] + 0.25 * ring + 0.25 * faces;
         assert!((got[v] - want).length() < 1e-15);
         // Catmull-Clark would give (n-2)/n v + ...: different at valence 3.
@@ -435,6 +468,7 @@ fn dwt_1d(x: &mut [DVec3], lifts: &[Lift]) {
 }
 
 #[test]
+#[allow(clippy::needless_range_loop)] // grid indices read clearer than iterators here
 fn regular_grid_is_tensor_product_of_1d_dwt() {
     // §4.2: on a rectilinear grid the generalized lifts are the tensor product of the 1-D
     // ones. A 1-D DWT of every row, then of every column, must give the mesh transform.
@@ -480,7 +514,10 @@ fn zero_detail_synthesis_is_tensor_bspline_subdivision() {
     let masks: [(&[f64], &[f64]); 3] = [
         (&[1.0], &[0.5, 0.5]),
         (&[0.125, 0.75, 0.125], &[0.5, 0.5]),
-        (&[3.0 / 16.0, 5.0 / 8.0, 3.0 / 16.0], &[1.0 / 32.0, 15.0 / 32.0, 15.0 / 32.0, 1.0 / 32.0]),
+        (
+            &[3.0 / 16.0, 5.0 / 8.0, 3.0 / 16.0],
+            &[1.0 / 32.0, 15.0 / 32.0, 15.0 / 32.0, 1.0 / 32.0],
+        ),
     ];
     let refine_1d = |x: &[DVec3], even: &[f64], odd: &[f64]| -> Vec<DVec3> {
         let n = x.len() as isize;
@@ -488,9 +525,17 @@ fn zero_detail_synthesis_is_tensor_bspline_subdivision() {
         let mut y = Vec::new();
         for i in 0..n {
             let h = (even.len() / 2) as isize;
-            y.push((0..even.len()).map(|k| even[k] * at(i + k as isize - h)).sum());
+            y.push(
+                (0..even.len())
+                    .map(|k| even[k] * at(i + k as isize - h))
+                    .sum(),
+            );
             let h = (odd.len() / 2 - 1) as isize;
-            y.push((0..odd.len()).map(|k| odd[k] * at(i + k as isize - h)).sum());
+            y.push(
+                (0..odd.len())
+                    .map(|k| odd[k] * at(i + k as isize - h))
+                    .sum(),
+            );
         }
         y
     };
@@ -535,7 +580,11 @@ fn zero_detail_synthesis_is_tensor_bspline_subdivision() {
 
 /// RMS distance of two point sets.
 fn rms(a: &[DVec3], b: &[DVec3]) -> f64 {
-    (a.iter().zip(b).map(|(x, y)| (*x - *y).length_squared()).sum::<f64>() / a.len() as f64)
+    (a.iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).length_squared())
+        .sum::<f64>()
+        / a.len() as f64)
         .sqrt()
 }
 
@@ -569,8 +618,10 @@ fn stability(degree: Degree, levels: u32) -> Vec<f64> {
     let sizes = level_sizes(&r.topologies).unwrap();
     let mut out = vec![rms(&noisy, &clean) / mean_edge(&fine_topo, &clean)];
     for j in (0..levels as usize).rev() {
-        w.analyze_level(&r.topologies[j], &mut noisy[..sizes[j + 1]]).unwrap();
-        w.analyze_level(&r.topologies[j], &mut clean[..sizes[j + 1]]).unwrap();
+        w.analyze_level(&r.topologies[j], &mut noisy[..sizes[j + 1]])
+            .unwrap();
+        w.analyze_level(&r.topologies[j], &mut clean[..sizes[j + 1]])
+            .unwrap();
         let n = rms(&noisy[..sizes[j]], &clean[..sizes[j]]);
         out.push(n / mean_edge(&r.topologies[j], &clean[..sizes[j]]));
     }
@@ -607,13 +658,18 @@ fn energy_compaction_on_a_sphere() {
     let sphere: Vec<DVec3> = r.positions.iter().map(|p| p.normalize()).collect();
     for degree in Degree::ALL {
         let mut data = sphere.clone();
-        BSplineWavelet::new(degree).analyze(&r.topologies, &mut data).unwrap();
+        BSplineWavelet::new(degree)
+            .analyze(&r.topologies, &mut data)
+            .unwrap();
         let mean = |j: usize| {
             let d = &data[detail_range(&r.topologies, j).unwrap()];
             d.iter().map(|x| x.length()).sum::<f64>() / d.len() as f64
         };
         let (coarse, fine) = (mean(0), mean(levels as usize - 1));
-        eprintln!("{degree:?}: mean detail level 0 {coarse:.3e}, level {} {fine:.3e}", levels - 1);
+        eprintln!(
+            "{degree:?}: mean detail level 0 {coarse:.3e}, level {} {fine:.3e}",
+            levels - 1
+        );
         assert!(fine * 10.0 <= coarse, "{degree:?}: {coarse} vs {fine}");
     }
 }
@@ -623,7 +679,10 @@ fn bspline_schemes_through_subdivide() {
     let mut mesh = generate::pyramid();
     mesh.colors = Some(vec![[1.0, 0.0, 0.0]; 5]);
     let r = hierarchy(&mesh, 2);
-    for (scheme, degree) in [(Scheme::Bicubic, Degree::Cubic), (Scheme::Biquintic, Degree::Quintic)] {
+    for (scheme, degree) in [
+        (Scheme::Bicubic, Degree::Cubic),
+        (Scheme::Biquintic, Degree::Quintic),
+    ] {
         let opts = SubdivideOptions {
             scheme,
             levels: 2,
@@ -645,5 +704,33 @@ fn bspline_schemes_through_subdivide() {
         assert!(Refinement::build(&mesh, &opts, true).is_err());
         let zero = subdivide(&mesh, &SubdivideOptions { levels: 0, ..opts }).unwrap();
         assert_eq!(zero.positions, mesh.positions);
+    }
+}
+
+#[test]
+#[ignore = "timing: cargo test -p subwave --lib wavelet::bertram::tests::throughput -- --ignored --nocapture"]
+fn throughput() {
+    // A cube refined 9 times: 1.57 M vertices at the finest level.
+    let r = hierarchy(&generate::cube(), 9);
+    let n = r.positions.len();
+    for degree in Degree::ALL {
+        let w = BSplineWavelet::new(degree);
+        let mut data = r.positions.clone();
+        let t = std::time::Instant::now();
+        w.analyze(&r.topologies, &mut data).unwrap();
+        let fwd = t.elapsed().as_secs_f64();
+        let t = std::time::Instant::now();
+        w.synthesize(&r.topologies, &mut data).unwrap();
+        let inv = t.elapsed().as_secs_f64();
+        let mut ints = to_int(&r.positions, 1e6);
+        let t = std::time::Instant::now();
+        w.analyze_int(&r.topologies, &mut ints).unwrap();
+        let ifwd = t.elapsed().as_secs_f64();
+        eprintln!(
+            "{degree:?}: {n} vertices, analysis {:.1} M/s, synthesis {:.1} M/s, integer analysis {:.1} M/s",
+            n as f64 / fwd / 1e6,
+            n as f64 / inv / 1e6,
+            n as f64 / ifwd / 1e6
+        );
     }
 }
