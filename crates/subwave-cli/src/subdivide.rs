@@ -34,6 +34,11 @@ pub enum SchemeArg {
     /// Quad/triangle (Stam & Loop 2003): triangles and quads, Loop on triangles,
     /// Catmull-Clark on quads, sharp and semi-sharp creases.
     QuadTri,
+
+    /// Generalized bicubic B-splines (MLCA, Bertram et al.'s cubic wavelet synthesis).
+    Bicubic,
+    /// Generalized biquintic B-splines (Bertram et al.'s quintic wavelet synthesis).
+    Biquintic,
 }
 
 /// Boundary treatment on the command line.
@@ -79,6 +84,8 @@ pub fn scheme(arg: SchemeArg) -> Scheme {
         SchemeArg::ButterflyOriginal => Scheme::ButterflyOriginal,
         SchemeArg::Sqrt3 => Scheme::Sqrt3,
         SchemeArg::QuadTri => Scheme::QuadTri,
+        SchemeArg::Bicubic => Scheme::Bicubic,
+        SchemeArg::Biquintic => Scheme::Biquintic,
     }
 }
 

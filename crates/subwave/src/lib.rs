@@ -10,6 +10,9 @@
 //! - [`io`]: OBJ, OFF, PLY, STL readers; OBJ, OFF, PLY, GLB writers;
 //! - [`generate`]: meshes the tests and the demo build themselves;
 //! - [`distance`]: Metro-style surface distance (RMS, Hausdorff, PSNR).
+
+//! - [`wavelet`]: wavelet transforms on subdivision hierarchies (Bertram et al.'s B-spline
+//!   wavelets).
 #![warn(missing_docs)]
 
 pub mod distance;
@@ -20,6 +23,7 @@ pub mod mesh;
 pub mod subdivision;
 pub mod topology;
 pub mod validate;
+pub mod wavelet;
 
 pub use error::{Error, Location, MeshError, Result};
 pub use glam::DVec3;

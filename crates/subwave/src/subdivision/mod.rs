@@ -66,6 +66,13 @@ pub enum Scheme {
     /// Quad/triangle subdivision of Stam & Loop 2003 (triangles and quads; Loop on triangle
     /// regions, Catmull-Clark on quad regions), sharp and semi-sharp creases.
     QuadTri,
+
+    /// Generalized bicubic B-splines (MLCA): Bertram et al.'s cubic wavelet synthesis with
+    /// zero details ([`crate::wavelet::bertram`]); Catmull-Clark at regular vertices.
+    Bicubic,
+    /// Generalized biquintic B-splines: Bertram et al.'s quintic wavelet synthesis with zero
+    /// details ([`crate::wavelet::bertram`]).
+    Biquintic,
 }
 
 impl Scheme {
@@ -82,6 +89,20 @@ impl Scheme {
             Scheme::Sqrt3 => "sqrt3",
 
             Scheme::QuadTri => "quad-tri",
+
+            Scheme::Bicubic => "bicubic",
+            Scheme::Biquintic => "biquintic",
+        }
+    }
+
+    /// The B-spline degree of the schemes computed by wavelet synthesis
+    /// ([`crate::wavelet::bertram`]), `None` for stencil-based schemes.
+    pub fn bspline_degree(self) -> Option<crate::wavelet::bertram::Degree> {
+        use crate::wavelet::bertram::Degree;
+        match self {
+            Scheme::Bicubic => Some(Degree::Cubic),
+            Scheme::Biquintic => Some(Degree::Quintic),
+            _ => None,
         }
     }
 }
@@ -160,7 +181,9 @@ fn rules_for(opts: &SubdivideOptions, mesh: &Mesh) -> Box<dyn Rules> {
                 Split::Polygons
             },
         }),
-        Scheme::Bilinear => Box::new(MidpointRules {
+        // The B-spline schemes refine like bilinear; their positions come from the wavelet
+        // synthesis (`Refinement::build_with`).
+        Scheme::Bilinear | Scheme::Bicubic | Scheme::Biquintic => Box::new(MidpointRules {
             split: Split::Polygons,
         }),
         Scheme::CatmullClark => Box::new(CatmullClarkRules),
@@ -251,6 +274,10 @@ impl Refinement {
         if opts.scheme == Scheme::Sqrt3 {
             mesh.check_indices()?;
             return sqrt3::build(mesh, opts, keep_stencils, keep_topologies);
+        }
+        if let Some(degree) = opts.scheme.bspline_degree() {
+            mesh.check_indices()?;
+            return bspline_refinement(mesh, opts, degree, keep_stencils, keep_topologies);
         }
         let Prepared {
             rules,
@@ -497,6 +524,36 @@ pub(crate) fn prepare(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Prepared> 
     })
 }
 
+/// [`Refinement`] of the B-spline schemes: bilinear topology, positions from the wavelet
+/// synthesis with zero details. No stencil tables (the synthesis is a sequence of lifts).
+fn bspline_refinement(
+    mesh: &Mesh,
+    opts: &SubdivideOptions,
+    degree: crate::wavelet::bertram::Degree,
+    keep_stencils: bool,
+    keep_topologies: bool,
+) -> Result<Refinement> {
+    if keep_stencils {
+        return Err(Error::InvalidArgument(format!(
+            "{} is computed by wavelet lifting and has no stencil tables",
+            opts.scheme.name()
+        )));
+    }
+    let bilinear = SubdivideOptions {
+        scheme: Scheme::Bilinear,
+        ..*opts
+    };
+    let mut r = Refinement::build_with(mesh, &bilinear, false, true)?;
+    if opts.levels > 0 {
+        let w = crate::wavelet::bertram::BSplineWavelet::new(degree);
+        r.positions = w.subdivide(&r.topologies, &mesh.positions)?;
+    }
+    if !keep_topologies {
+        r.topologies.clear();
+    }
+    Ok(r)
+}
+
 /// Faces that are holes under [`BoundaryMode::None`] (OpenSubdiv's
 /// `TopologyRefinerFactoryBase::prepareComponentTagsAndSharpness`): those incident to a
 /// boundary vertex with a boundary edge not tagged infinitely sharp. Call before boundary edges
@@ -601,6 +658,9 @@ fn finest_tags(parent: &Topology, creasing: Creasing) -> (Vec<EdgeTag>, Vec<Vert
 /// # Errors
 /// As [`Refinement::build`].
 pub fn subdivide(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Mesh> {
+    if let Some(degree) = opts.scheme.bspline_degree() {
+        return crate::wavelet::bertram::subdivide_mesh(mesh, opts, degree);
+    }
     let carry = mesh.colors.is_some() || mesh.uvs.is_some();
     let r = Refinement::build_with(mesh, opts, carry, carry)?;
     let holes: Vec<_> = if r.base_holes.is_empty() {

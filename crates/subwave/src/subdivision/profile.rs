@@ -138,7 +138,10 @@ pub fn profile_subdivide(
 
 /// True if the scheme refines through [`prepare`]'s rules (topology and positions apart).
 fn rules_apply(scheme: super::Scheme) -> bool {
-    !matches!(scheme, super::Scheme::Sqrt3)
+    !matches!(
+        scheme,
+        super::Scheme::Sqrt3 | super::Scheme::Bicubic | super::Scheme::Biquintic
+    )
 }
 
 /// The topology phase: level-0 preparation, then every level's child tables and sharpness

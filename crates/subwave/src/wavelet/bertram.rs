@@ -1,0 +1,842 @@
+//! Generalized B-spline subdivision-surface wavelets (Bertram, Duchaineau, Hamann & Joy,
+//! "Generalized B-spline Subdivision-surface Wavelets for Geometry Compression").
+//!
+//! # The construction
+//! The one-dimensional linear, cubic and quintic B-spline wavelets of §3.3 are sequences of
+//! *s-lift* and *w-lift* operations (eqs. 3.9, 3.10; parameters in Table 1). §4.2 generalizes
+//! each operation to a mesh with Catmull-Clark connectivity (§4.1, Fig. 7): the fine level's
+//! vertices are `v` (one per coarse vertex, the scaling coefficients), `e` (one per coarse
+//! edge) and `f` (one per coarse face) — the wavelet coefficients. With the averaging
+//! operators of §4.1 (Fig. 8: `f̄_v` the mean of the `f` vertices of the faces around `v`,
+//! `ē_v` of the `e` vertices of its edges, `v̄_f`/`ē_f` of a face's corners/edges, `v̄_e` the
+//! midpoint of an edge, `f̄_e` the mean of its one or two faces' `f` vertices):
+//!
+//! ```text
+//! s-lift(a, b):  v ← b² v + 4a² f̄_v + 4ab ē_v;   then  e ← b e + 2a f̄_e      (4.5)
+//! w-lift(a, b):  f ← b² f + 4a² v̄_f + 4ab ē_f;   then  e ← b e + 2a v̄_e      (4.6)
+//! ```
+//!
+//! (each right-hand side reads the values before the operation; on a rectilinear grid this is
+//! exactly the tensor product of the 1-D lift applied to the rows, then the columns, eqs.
+//! 4.3/4.4 — tested). The averages divide by the actual number of neighbours, so the total
+//! weight of each update is independent of the valence (§4.2): extraordinary vertices and
+//! non-quad base faces need no special rule. The analysis (DWT) applies Table 1's lifts in
+//! order; the synthesis undoes each vertex modification exactly, in reverse order (§4.2, last
+//! paragraph) — on interior vertices that is the lift `(−a/b, 1/b)` of Table 1's lower half.
+//! With zero details the synthesis is a stationary subdivision scheme (§4.2, §5.1): bilinear
+//! for the linear wavelet, the MLCA scheme for the cubic one (eq. 4.7; equal to Catmull-Clark
+//! at valence 4), biquintic B-splines on regular grids for the quintic one.
+//!
+//! # Boundaries
+//! The paper treats only closed meshes; its averaging operators are nonetheless defined on a
+//! boundary (the mean over the neighbours that exist), and [`Boundary::Averages`] (the
+//! default) uses them unchanged: a boundary edge's `f̄_e` is its single face's `f` vertex.
+//! [`Boundary::Symmetric`] changes one operator so that a rectilinear grid *with boundary*
+//! reproduces the tensor product of the 1-D transform with whole-sample symmetric extension at
+//! the ends (the usual boundary of symmetric biorthogonal wavelets): at a boundary vertex with
+//! interior edges, `ē_v` is half the mean over its boundary edges plus half the mean over its
+//! interior edges. Both are exactly invertible; neither makes the boundary curve a B-spline
+//! curve of the boundary vertices alone (the interior pulls on it, as in a mirrored grid).
+//!
+//! # Integer transform (§4.3)
+//! Eqs. 4.8–4.11: each update adds the rounded (`[x]` = nearest integer, ties up) average term,
+//! so the inverse subtracts the very same integer. The last s-lift of the cubic (quintic)
+//! construction has `a` and `b` divided by 2 (4) so that every `b` is 1 ([`IntLift`],
+//! [`Degree::integer_lifts`]): coarse coefficients shrink by 4 (16) per level, details stay
+//! integers, and the inverse is exact for any integer input. Arithmetic is in `i128`; a
+//! coefficient that does not fit the coordinate type is an error, never a wrap.
+
+use std::ops::Range;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use rayon::prelude::*;
+
+use crate::mesh::Mesh;
+use crate::subdivision::stencil::Interpolate;
+use crate::subdivision::{Refinement, Scheme, SubdivideOptions};
+use crate::topology::Topology;
+use crate::{Error, Result};
+
+/// Elements per parallel work item.
+const MIN_LEN: usize = 2048;
+
+/// Polynomial degree of the B-spline scaling functions (§3.3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Degree {
+    /// Linear B-splines (§3.3.1): two lifts; synthesis with zero details is bilinear
+    /// subdivision.
+    Linear,
+    /// Cubic B-splines (§3.3.2): three lifts; synthesis with zero details is MLCA (eq. 4.7).
+    Cubic,
+    /// Quintic B-splines (§3.3.2): four lifts; unstable as a low-pass filter (§5.2).
+    Quintic,
+}
+
+/// Which coefficients a lifting operation modifies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LiftKind {
+    /// s-lift (eqs. 3.9, 4.5): modifies the scaling (`v`) coefficients from the `e`/`f`
+    /// details, then the `e` coefficients from the `f` ones.
+    S,
+    /// w-lift (eqs. 3.10, 4.6): modifies the `f` coefficients from the `v`/`e` ones, then the
+    /// `e` coefficients from the `v` ones.
+    W,
+}
+
+/// A floating-point lifting operation `s-lift(a, b)` or `w-lift(a, b)` (Table 1).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lift {
+    /// s- or w-lift.
+    pub kind: LiftKind,
+    /// Weight of the neighbours.
+    pub a: f64,
+    /// Weight of the coefficient itself (non-zero).
+    pub b: f64,
+}
+
+/// An integer lifting operation (eqs. 4.8, 4.9) with `a = a_num / a_den` and integer `b`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct IntLift {
+    /// s- or w-lift.
+    pub kind: LiftKind,
+    /// Numerator of `a`.
+    pub a_num: i64,
+    /// Denominator of `a` (positive).
+    pub a_den: i64,
+    /// Integer weight of the coefficient itself (1 in every table here, §4.3).
+    pub b: i64,
+}
+
+const fn lift(kind: LiftKind, a: f64, b: f64) -> Lift {
+    Lift { kind, a, b }
+}
+
+const fn ilift(kind: LiftKind, a_num: i64, a_den: i64) -> IntLift {
+    IntLift {
+        kind,
+        a_num,
+        a_den,
+        b: 1,
+    }
+}
+
+use LiftKind::{S, W};
+
+const LINEAR: [Lift; 2] = [lift(W, -0.5, 1.0), lift(S, 0.25, 1.0)];
+const CUBIC: [Lift; 3] = [lift(S, -0.25, 1.0), lift(W, -1.0, 1.0), lift(S, 0.375, 2.0)];
+const QUINTIC: [Lift; 4] = [
+    lift(W, -1.0 / 6.0, 1.0),
+    lift(S, -0.5625, 1.0),
+    lift(W, -4.0 / 3.0, 1.0),
+    lift(S, 0.625, 4.0),
+];
+const INT_LINEAR: [IntLift; 2] = [ilift(W, -1, 2), ilift(S, 1, 4)];
+const INT_CUBIC: [IntLift; 3] = [ilift(S, -1, 4), ilift(W, -1, 1), ilift(S, 3, 16)];
+const INT_QUINTIC: [IntLift; 4] = [
+    ilift(W, -1, 6),
+    ilift(S, -9, 16),
+    ilift(W, -4, 3),
+    ilift(S, 5, 32),
+];
+
+impl Degree {
+    /// All degrees, ascending.
+    pub const ALL: [Degree; 3] = [Degree::Linear, Degree::Cubic, Degree::Quintic];
+
+    /// Lower-case name (`linear`, `cubic`, `quintic`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Degree::Linear => "linear",
+            Degree::Cubic => "cubic",
+            Degree::Quintic => "quintic",
+        }
+    }
+
+    /// The analysis (DWT) lifts in order of computation: Table 1, upper half.
+    pub fn analysis_lifts(self) -> &'static [Lift] {
+        match self {
+            Degree::Linear => &LINEAR,
+            Degree::Cubic => &CUBIC,
+            Degree::Quintic => &QUINTIC,
+        }
+    }
+
+    /// The synthesis (inverse DWT) lifts in order of computation, `(−a/b, 1/b)` of the analysis
+    /// lifts in reverse order: Table 1, lower half. (The implementation inverts each vertex
+    /// modification exactly instead, which equals these lifts away from boundaries.)
+    pub fn synthesis_lifts(self) -> Vec<Lift> {
+        self.analysis_lifts()
+            .iter()
+            .rev()
+            .map(|l| lift(l.kind, -l.a / l.b, 1.0 / l.b))
+            .collect()
+    }
+
+    /// The integer analysis lifts of §4.3: Table 1 with `a` and `b` of the last s-lift divided
+    /// by 2 (cubic) or 4 (quintic), so that every `b` is 1.
+    pub fn integer_lifts(self) -> &'static [IntLift] {
+        match self {
+            Degree::Linear => &INT_LINEAR,
+            Degree::Cubic => &INT_CUBIC,
+            Degree::Quintic => &INT_QUINTIC,
+        }
+    }
+}
+
+/// Boundary treatment (the paper covers closed meshes only; see the module documentation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Boundary {
+    /// The §4.1 averaging operators unchanged: means over the neighbours that exist.
+    #[default]
+    Averages,
+    /// As `Averages`, except that `ē_v` at a boundary vertex weighs its boundary edges and its
+    /// interior edges one half each: a rectilinear grid with boundary then reproduces the
+    /// tensor product of the 1-D transform with symmetric extension.
+    Symmetric,
+}
+
+/// Integer coordinate types of the integer transform (`i32`, `i64`).
+pub trait IntCoord: Copy + Send + Sync + Into<i128> + TryFrom<i128> {
+    /// Type name for error messages.
+    const NAME: &'static str;
+}
+
+impl IntCoord for i32 {
+    const NAME: &'static str = "i32";
+}
+
+impl IntCoord for i64 {
+    const NAME: &'static str = "i64";
+}
+
+/// A generalized B-spline wavelet transform: degree and boundary rule.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BSplineWavelet {
+    /// Degree of the B-splines.
+    pub degree: Degree,
+    /// Boundary treatment.
+    pub boundary: Boundary,
+}
+
+impl BSplineWavelet {
+    /// The transform of `degree` with the default boundary rule ([`Boundary::Averages`]).
+    pub fn new(degree: Degree) -> Self {
+        BSplineWavelet {
+            degree,
+            boundary: Boundary::default(),
+        }
+    }
+
+    /// One analysis step (§4.2, Table 1): `data` holds the level refined from `coarse`
+    /// (`V + E + F` entries, ordering contract of [`crate::subdivision::refine`]); afterwards
+    /// the first `V` entries are the coarse positions and the others the detail coefficients of
+    /// the edge and face vertices.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] if `data` does not have `V + E + F` entries.
+    pub fn analyze_level<T: Interpolate>(&self, coarse: &Topology, data: &mut [T]) -> Result<()> {
+        check_len(coarse, data.len())?;
+        let ctx = Ctx::new(coarse, self.boundary);
+        for l in self.degree.analysis_lifts() {
+            ctx.lift(*l, data);
+        }
+        Ok(())
+    }
+
+    /// One synthesis step, the exact inverse of [`BSplineWavelet::analyze_level`]: each vertex
+    /// modification undone in reverse order (eqs. 4.5/4.6 solved for the old value).
+    ///
+    /// # Errors
+    /// As [`BSplineWavelet::analyze_level`].
+    pub fn synthesize_level<T: Interpolate>(
+        &self,
+        coarse: &Topology,
+        data: &mut [T],
+    ) -> Result<()> {
+        check_len(coarse, data.len())?;
+        let ctx = Ctx::new(coarse, self.boundary);
+        for l in self.degree.analysis_lifts().iter().rev() {
+            ctx.unlift(*l, data);
+        }
+        Ok(())
+    }
+
+    /// The full analysis of a hierarchy, in place: `levels[j]` is the topology of level `j`
+    /// (as [`Refinement::topologies`] of a polygon split), `data` the finest level
+    /// (`levels.len()` splits of `levels[0]`). Afterwards `data` is `[base | details of level
+    /// 0 | details of level 1 | …]` (see [`detail_range`]).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] if the levels are not successive polygon splits or `data`
+    /// has the wrong length.
+    pub fn analyze<T: Interpolate>(&self, levels: &[Topology], data: &mut [T]) -> Result<()> {
+        let sizes = level_sizes(levels)?;
+        check_total(&sizes, data.len())?;
+        for (j, topo) in levels.iter().enumerate().rev() {
+            self.analyze_level(topo, &mut data[..sizes[j + 1]])?;
+        }
+        Ok(())
+    }
+
+    /// The full synthesis, inverse of [`BSplineWavelet::analyze`].
+    ///
+    /// # Errors
+    /// As [`BSplineWavelet::analyze`].
+    pub fn synthesize<T: Interpolate>(&self, levels: &[Topology], data: &mut [T]) -> Result<()> {
+        let sizes = level_sizes(levels)?;
+        check_total(&sizes, data.len())?;
+        for (j, topo) in levels.iter().enumerate() {
+            self.synthesize_level(topo, &mut data[..sizes[j + 1]])?;
+        }
+        Ok(())
+    }
+
+    /// Subdivision: the synthesis of `base` (one value per vertex of `levels[0]`) with all
+    /// details zero (§4.2, §5.1), returning the finest level.
+    ///
+    /// # Errors
+    /// As [`BSplineWavelet::analyze`], or if `base` has the wrong length.
+    pub fn subdivide<T: Interpolate>(&self, levels: &[Topology], base: &[T]) -> Result<Vec<T>> {
+        let sizes = level_sizes(levels)?;
+        if base.len() != sizes[0] {
+            return Err(Error::InvalidArgument(format!(
+                "{} base values given, the base mesh has {} vertices",
+                base.len(),
+                sizes[0]
+            )));
+        }
+        let mut data = Vec::with_capacity(*sizes.last().unwrap_or(&0));
+        data.extend_from_slice(base);
+        data.resize(*sizes.last().unwrap_or(&0), T::zero());
+        self.synthesize(levels, &mut data)?;
+        Ok(data)
+    }
+
+    /// One integer analysis step (eqs. 4.8, 4.9 with the §4.3 rescaling): as
+    /// [`BSplineWavelet::analyze_level`] on integer coordinates.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] if `data` has the wrong length or a coefficient overflows
+    /// `I` (the message names the vertex).
+    pub fn analyze_level_int<I: IntCoord>(
+        &self,
+        coarse: &Topology,
+        data: &mut [[I; 3]],
+    ) -> Result<()> {
+        check_len(coarse, data.len())?;
+        let ctx = Ctx::new(coarse, self.boundary);
+        for l in self.degree.integer_lifts() {
+            ctx.int_lift(*l, data, false)?;
+        }
+        Ok(())
+    }
+
+    /// One integer synthesis step (eqs. 4.10, 4.11), the exact inverse of
+    /// [`BSplineWavelet::analyze_level_int`].
+    ///
+    /// # Errors
+    /// As [`BSplineWavelet::analyze_level_int`].
+    pub fn synthesize_level_int<I: IntCoord>(
+        &self,
+        coarse: &Topology,
+        data: &mut [[I; 3]],
+    ) -> Result<()> {
+        check_len(coarse, data.len())?;
+        let ctx = Ctx::new(coarse, self.boundary);
+        for l in self.degree.integer_lifts().iter().rev() {
+            ctx.int_lift(*l, data, true)?;
+        }
+        Ok(())
+    }
+
+    /// The full integer analysis of a hierarchy, in place (layout as
+    /// [`BSplineWavelet::analyze`]).
+    ///
+    /// # Errors
+    /// As [`BSplineWavelet::analyze`] and [`BSplineWavelet::analyze_level_int`].
+    pub fn analyze_int<I: IntCoord>(&self, levels: &[Topology], data: &mut [[I; 3]]) -> Result<()> {
+        let sizes = level_sizes(levels)?;
+        check_total(&sizes, data.len())?;
+        for (j, topo) in levels.iter().enumerate().rev() {
+            self.analyze_level_int(topo, &mut data[..sizes[j + 1]])?;
+        }
+        Ok(())
+    }
+
+    /// The full integer synthesis, inverse of [`BSplineWavelet::analyze_int`].
+    ///
+    /// # Errors
+    /// As [`BSplineWavelet::analyze_int`].
+    pub fn synthesize_int<I: IntCoord>(
+        &self,
+        levels: &[Topology],
+        data: &mut [[I; 3]],
+    ) -> Result<()> {
+        let sizes = level_sizes(levels)?;
+        check_total(&sizes, data.len())?;
+        for (j, topo) in levels.iter().enumerate() {
+            self.synthesize_level_int(topo, &mut data[..sizes[j + 1]])?;
+        }
+        Ok(())
+    }
+}
+
+/// Number of vertices of each level: `sizes[0]` of the base, `sizes[j + 1] = V_j + E_j + F_j`
+/// of the level refined from `levels[j]`.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] if `levels` is empty or `levels[j + 1]` is not the polygon split
+/// of `levels[j]` (by vertex count).
+pub fn level_sizes(levels: &[Topology]) -> Result<Vec<usize>> {
+    let Some(first) = levels.first() else {
+        return Err(Error::InvalidArgument(
+            "a wavelet hierarchy needs at least one level".into(),
+        ));
+    };
+    let mut sizes = vec![first.num_vertices as usize];
+    for (j, t) in levels.iter().enumerate() {
+        if t.num_vertices as usize != sizes[j] {
+            return Err(Error::InvalidArgument(format!(
+                "level {j} has {} vertices, expected {} (the polygon split of level {})",
+                t.num_vertices,
+                sizes[j],
+                j.saturating_sub(1)
+            )));
+        }
+        sizes.push(fine_count(t));
+    }
+    Ok(sizes)
+}
+
+/// Index range of the detail coefficients of level `j` (the `e` and `f` vertices of the level
+/// refined from `levels[j]`) in the layout left by [`BSplineWavelet::analyze`]; `j ==
+/// levels.len()` is not valid. `0..V_0` holds the base mesh.
+///
+/// # Errors
+/// As [`level_sizes`], or [`Error::InvalidArgument`] if `j >= levels.len()`.
+pub fn detail_range(levels: &[Topology], j: usize) -> Result<Range<usize>> {
+    let sizes = level_sizes(levels)?;
+    if j >= levels.len() {
+        return Err(Error::InvalidArgument(format!(
+            "level {j} has no details: the hierarchy has {} levels",
+            levels.len()
+        )));
+    }
+    Ok(sizes[j]..sizes[j + 1])
+}
+
+/// The topology hierarchy of `levels` polygon splits (Catmull-Clark connectivity, §4.1) of
+/// `mesh`, with the bilinearly refined positions: [`Refinement::build`] with
+/// [`Scheme::Bilinear`]; its `topologies` feed the transforms.
+///
+/// # Errors
+/// As [`Refinement::build`].
+pub fn quad_hierarchy(mesh: &Mesh, levels: u32) -> Result<Refinement> {
+    let opts = SubdivideOptions {
+        scheme: Scheme::Bilinear,
+        levels,
+        ..SubdivideOptions::default()
+    };
+    Refinement::build(mesh, &opts, false)
+}
+
+/// Plain subdivision with the synthesis of `degree` and zero details (§4.2, §5.1): the
+/// [`Scheme::Bicubic`] and [`Scheme::Biquintic`] paths of
+/// [`crate::subdivision::subdivide`]. Vertex colours and texture coordinates are subdivided
+/// the same way; crease tags have no effect on these schemes (they are carried to the new
+/// edges as for bilinear subdivision).
+///
+/// # Errors
+/// As [`Refinement::build`].
+pub fn subdivide_mesh(mesh: &Mesh, opts: &SubdivideOptions, degree: Degree) -> Result<Mesh> {
+    let r = Refinement::build(
+        mesh,
+        &SubdivideOptions {
+            scheme: Scheme::Bilinear,
+            ..*opts
+        },
+        false,
+    )?;
+    let mut out = r.to_mesh();
+    out.edge_tags = r.edge_tags;
+    out.vertex_tags = r.vertex_tags;
+    if opts.levels == 0 {
+        out.colors.clone_from(&mesh.colors);
+        out.uvs.clone_from(&mesh.uvs);
+        return Ok(out);
+    }
+    let w = BSplineWavelet::new(degree);
+    out.positions = w.subdivide(&r.topologies, &mesh.positions)?;
+    if let Some(c) = &mesh.colors {
+        out.colors = Some(w.subdivide(&r.topologies, c)?);
+    }
+    if let Some(t) = &mesh.uvs {
+        out.uvs = Some(w.subdivide(&r.topologies, t)?);
+    }
+    Ok(out)
+}
+
+fn fine_count(t: &Topology) -> usize {
+    t.num_vertices as usize + t.num_edges() + t.num_faces()
+}
+
+fn check_len(coarse: &Topology, len: usize) -> Result<()> {
+    let n = fine_count(coarse);
+    if len != n {
+        return Err(Error::InvalidArgument(format!(
+            "{len} values given, the refined level has {n} vertices ({} + {} edges + {} faces)",
+            coarse.num_vertices,
+            coarse.num_edges(),
+            coarse.num_faces()
+        )));
+    }
+    Ok(())
+}
+
+fn check_total(sizes: &[usize], len: usize) -> Result<()> {
+    let n = *sizes.last().unwrap_or(&0);
+    if len != n {
+        return Err(Error::InvalidArgument(format!(
+            "{len} values given, the finest level of the hierarchy has {n} vertices"
+        )));
+    }
+    Ok(())
+}
+
+/// The coarse topology of one level and the boundary rule: the §4.1 averaging operators.
+struct Ctx<'a> {
+    t: &'a Topology,
+    symmetric: bool,
+}
+
+/// `Σ w_i x_i / den` as integer weights: `ē_v` under the boundary rule.
+#[derive(Clone, Copy)]
+struct EdgeWeights {
+    boundary: i64,
+    interior: i64,
+    den: i64,
+}
+
+/// `self = Σ w_i x_i`.
+#[inline]
+fn combo<T: Interpolate>(terms: &[(&T, f64)]) -> T {
+    let mut y = T::zero();
+    for (x, w) in terms {
+        y.add_scaled(x, *w);
+    }
+    y
+}
+
+/// Mean of `data[idx]` (zero if `idx` is empty).
+#[inline]
+fn mean<T: Interpolate>(idx: &[u32], data: &[T]) -> T {
+    let mut y = T::zero();
+    if !idx.is_empty() {
+        let w = 1.0 / idx.len() as f64;
+        for &i in idx {
+            y.add_scaled(&data[i as usize], w);
+        }
+    }
+    y
+}
+
+/// Exact sum of `data[idx]` and the count (1 if empty, the sum being 0).
+#[inline]
+fn isum<I: IntCoord>(idx: &[u32], data: &[[I; 3]]) -> ([i128; 3], i128) {
+    let mut s = [0i128; 3];
+    for &i in idx {
+        let x = data[i as usize];
+        for k in 0..3 {
+            s[k] += x[k].into();
+        }
+    }
+    (s, idx.len().max(1) as i128)
+}
+
+/// `[n / d]`: nearest integer, ties towards +∞ (`d > 0`).
+#[inline]
+fn round_div(n: i128, d: i128) -> i128 {
+    (2 * n + d).div_euclid(2 * d)
+}
+
+/// Runs `f(i, &mut out[i])` over `out` in parallel.
+#[inline]
+fn par_update<T: Send, F: Fn(usize, &mut T) + Sync + Send>(out: &mut [T], f: F) {
+    out.par_iter_mut()
+        .with_min_len(MIN_LEN)
+        .enumerate()
+        .for_each(|(i, x)| f(i, x));
+}
+
+/// Splits a level's data into its `v`, `e` and `f` parts.
+fn split3<'d, T>(t: &Topology, data: &'d mut [T]) -> (&'d mut [T], &'d mut [T], &'d mut [T]) {
+    let (v, rest) = data.split_at_mut(t.num_vertices as usize);
+    let (e, f) = rest.split_at_mut(t.num_edges());
+    (v, e, f)
+}
+
+/// Records the smallest index whose coefficient overflowed.
+struct Overflow(AtomicUsize);
+
+impl Overflow {
+    fn new() -> Self {
+        Overflow(AtomicUsize::new(usize::MAX))
+    }
+    fn set(&self, i: usize) {
+        self.0.fetch_min(i, Ordering::Relaxed);
+    }
+    fn check<I: IntCoord>(&self, what: &str) -> Result<()> {
+        match self.0.load(Ordering::Relaxed) {
+            usize::MAX => Ok(()),
+            i => Err(Error::InvalidArgument(format!(
+                "integer wavelet transform: the coefficient of {what} vertex {i} does not fit \
+                 in {} (use i64 or smaller coordinates)",
+                I::NAME
+            ))),
+        }
+    }
+}
+
+/// Converts `x` to `[I; 3]`, recording `i` in `o` on overflow.
+#[inline]
+fn store<I: IntCoord>(x: [i128; 3], out: &mut [I; 3], o: &Overflow, i: usize) {
+    for k in 0..3 {
+        match I::try_from(x[k]) {
+            Ok(y) => out[k] = y,
+            Err(_) => o.set(i),
+        }
+    }
+}
+
+impl<'a> Ctx<'a> {
+    fn new(t: &'a Topology, boundary: Boundary) -> Self {
+        Ctx {
+            t,
+            symmetric: boundary == Boundary::Symmetric,
+        }
+    }
+
+    /// Weights of `ē_v` for vertex `v` (§4.1; [`Boundary::Symmetric`] at boundary vertices).
+    #[inline]
+    fn edge_weights(&self, v: usize) -> EdgeWeights {
+        let edges = self.t.vertex_edges(v);
+        let n = edges.len() as i64;
+        if self.symmetric {
+            let nb = edges
+                .iter()
+                .filter(|&&e| self.t.is_boundary_edge(e as usize))
+                .count() as i64;
+            if nb > 0 && nb < n {
+                let ni = n - nb;
+                return EdgeWeights {
+                    boundary: ni,
+                    interior: nb,
+                    den: 2 * nb * ni,
+                };
+            }
+        }
+        EdgeWeights {
+            boundary: 1,
+            interior: 1,
+            den: n.max(1),
+        }
+    }
+
+    /// `ē_v` in floating point.
+    #[inline]
+    fn e_bar_v<T: Interpolate>(&self, v: usize, e: &[T]) -> T {
+        let w = self.edge_weights(v);
+        let (wb, wi) = (
+            w.boundary as f64 / w.den as f64,
+            w.interior as f64 / w.den as f64,
+        );
+        let mut y = T::zero();
+        for &x in self.t.vertex_edges(v) {
+            let k = if self.symmetric && self.t.is_boundary_edge(x as usize) {
+                wb
+            } else {
+                wi
+            };
+            y.add_scaled(&e[x as usize], k);
+        }
+        y
+    }
+
+    /// `ē_v` as an exact weighted sum and its denominator.
+    #[inline]
+    fn e_bar_v_int<I: IntCoord>(&self, v: usize, e: &[[I; 3]]) -> ([i128; 3], i128) {
+        let w = self.edge_weights(v);
+        let mut s = [0i128; 3];
+        for &x in self.t.vertex_edges(v) {
+            let k = if self.symmetric && self.t.is_boundary_edge(x as usize) {
+                w.boundary
+            } else {
+                w.interior
+            } as i128;
+            let c = e[x as usize];
+            for j in 0..3 {
+                s[j] += k * c[j].into();
+            }
+        }
+        (s, w.den as i128)
+    }
+
+    fn lift<T: Interpolate>(&self, l: Lift, data: &mut [T]) {
+        let t = self.t;
+        let (v, e, f) = split3(t, data);
+        let (a, b) = (l.a, l.b);
+        let (kk, kb, b2) = (4.0 * a * a, 4.0 * a * b, b * b);
+        match l.kind {
+            S => {
+                // v ← b² v + 4a² f̄_v + 4ab ē_v (eq. 4.5), reading the old e.
+                let (e_ro, f_ro): (&[T], &[T]) = (e, f);
+                par_update(v, |i, x| {
+                    let fb = mean(t.vertex_faces(i), f_ro);
+                    let eb = self.e_bar_v(i, e_ro);
+                    *x = combo(&[(x, b2), (&fb, kk), (&eb, kb)]);
+                });
+                // e ← b e + 2a f̄_e.
+                par_update(e, |i, x| {
+                    let fb = mean(t.edge_faces(i), f_ro);
+                    *x = combo(&[(x, b), (&fb, 2.0 * a)]);
+                });
+            }
+            W => {
+                // f ← b² f + 4a² v̄_f + 4ab ē_f (eq. 4.6), reading the old e.
+                let (v_ro, e_ro): (&[T], &[T]) = (v, e);
+                par_update(f, |i, x| {
+                    let vb = mean(t.face_vertices(i), v_ro);
+                    let eb = mean(t.face_edges(i), e_ro);
+                    *x = combo(&[(x, b2), (&vb, kk), (&eb, kb)]);
+                });
+                // e ← b e + 2a v̄_e.
+                par_update(e, |i, x| {
+                    let vb = mean(&t.edge_vertices[i], v_ro);
+                    *x = combo(&[(x, b), (&vb, 2.0 * a)]);
+                });
+            }
+        }
+    }
+
+    fn unlift<T: Interpolate>(&self, l: Lift, data: &mut [T]) {
+        let t = self.t;
+        let (v, e, f) = split3(t, data);
+        let (a, b) = (l.a, l.b);
+        let (kk, kb, b2) = (4.0 * a * a, 4.0 * a * b, b * b);
+        match l.kind {
+            S => {
+                let f_ro: &[T] = f;
+                par_update(e, |i, x| {
+                    let fb = mean(t.edge_faces(i), f_ro);
+                    *x = combo(&[(x, 1.0 / b), (&fb, -2.0 * a / b)]);
+                });
+                let e_ro: &[T] = e;
+                par_update(v, |i, x| {
+                    let fb = mean(t.vertex_faces(i), f_ro);
+                    let eb = self.e_bar_v(i, e_ro);
+                    *x = combo(&[(x, 1.0 / b2), (&fb, -kk / b2), (&eb, -kb / b2)]);
+                });
+            }
+            W => {
+                let v_ro: &[T] = v;
+                par_update(e, |i, x| {
+                    let vb = mean(&t.edge_vertices[i], v_ro);
+                    *x = combo(&[(x, 1.0 / b), (&vb, -2.0 * a / b)]);
+                });
+                let e_ro: &[T] = e;
+                par_update(f, |i, x| {
+                    let vb = mean(t.face_vertices(i), v_ro);
+                    let eb = mean(t.face_edges(i), e_ro);
+                    *x = combo(&[(x, 1.0 / b2), (&vb, -kk / b2), (&eb, -kb / b2)]);
+                });
+            }
+        }
+    }
+
+    /// Integer lift (eqs. 4.8, 4.9) or, if `inverse`, its inverse (eqs. 4.10, 4.11).
+    fn int_lift<I: IntCoord>(&self, l: IntLift, data: &mut [[I; 3]], inverse: bool) -> Result<()> {
+        let t = self.t;
+        let nv = t.num_vertices as usize;
+        let ne = t.num_edges();
+        let (v, e, f) = split3(t, data);
+        let (p, q, b) = (l.a_num as i128, l.a_den as i128, l.b as i128);
+        debug_assert!(q > 0 && b != 0);
+        let o = Overflow::new();
+        // The rounded term of the two-neighbour-class update `4a² x̄ + 4ab ȳ`, `x̄ = sx/dx`,
+        // `ȳ = sy/dy`: [(4p² sx dy + 4pqb sy dx) / (q² dx dy)].
+        let term2 = |sx: [i128; 3], dx: i128, sy: [i128; 3], dy: i128| -> [i128; 3] {
+            let den = q * q * dx * dy;
+            std::array::from_fn(|k| {
+                round_div(4 * p * p * sx[k] * dy + 4 * p * q * b * sy[k] * dx, den)
+            })
+        };
+        // [2a x̄] with x̄ = sx/dx.
+        let term1 = |sx: [i128; 3], dx: i128| -> [i128; 3] {
+            std::array::from_fn(|k| round_div(2 * p * sx[k], q * dx))
+        };
+        // Forward: y = b^m x + r. Inverse: x = (y − r) / b^m (exact for b = ±1; a remainder
+        // means `y` was not produced by the forward lift: reported as an overflow).
+        let apply = |x: &mut [I; 3], r: [i128; 3], bm: i128, i: usize| {
+            let y: [i128; 3] = std::array::from_fn(|k| {
+                let c: i128 = x[k].into();
+                if inverse {
+                    let d = c - r[k];
+                    if d % bm != 0 {
+                        o.set(i);
+                    }
+                    d / bm
+                } else {
+                    bm * c + r[k]
+                }
+            });
+            store(y, x, &o, i);
+        };
+        let vertex_pass = |v: &mut [[I; 3]], e: &[[I; 3]], f: &[[I; 3]]| {
+            par_update(v, |i, x| {
+                let (sf, df) = isum(t.vertex_faces(i), f);
+                let (se, de) = self.e_bar_v_int(i, e);
+                apply(x, term2(sf, df, se, de), b * b, i);
+            });
+        };
+        let face_pass = |f: &mut [[I; 3]], v: &[[I; 3]], e: &[[I; 3]]| {
+            par_update(f, |i, x| {
+                let (sv, dv) = isum(t.face_vertices(i), v);
+                let (se, de) = isum(t.face_edges(i), e);
+                apply(x, term2(sv, dv, se, de), b * b, nv + ne + i);
+            });
+        };
+        let edge_pass = |e: &mut [[I; 3]], src: &[[I; 3]], from_faces: bool| {
+            par_update(e, |i, x| {
+                let idx: &[u32] = if from_faces {
+                    t.edge_faces(i)
+                } else {
+                    &t.edge_vertices[i]
+                };
+                let (s, d) = isum(idx, src);
+                apply(x, term1(s, d), b, nv + i);
+            });
+        };
+        match (l.kind, inverse) {
+            (S, false) => {
+                vertex_pass(v, e, f);
+                edge_pass(e, f, true);
+            }
+            (S, true) => {
+                edge_pass(e, f, true);
+                vertex_pass(v, e, f);
+            }
+            (W, false) => {
+                face_pass(f, v, e);
+                edge_pass(e, v, false);
+            }
+            (W, true) => {
+                edge_pass(e, v, false);
+                face_pass(f, v, e);
+            }
+        }
+        o.check::<I>("refined")
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,17 @@
+//! Wavelet transforms on meshes with subdivision connectivity.
+//!
+//! - [`bertram`]: Bertram, Duchaineau, Hamann & Joy's generalized (lifted, biorthogonal)
+//!   B-spline wavelets on Catmull-Clark quad hierarchies — linear, cubic and quintic — in
+//!   floating point and as an exact integer-to-integer transform (§3–4.3 of the paper). With
+//!   zero details the synthesis is plain subdivision (bilinear, bicubic "MLCA", biquintic),
+//!   which [`crate::subdivision::Scheme::Bicubic`] and
+//!   [`crate::subdivision::Scheme::Biquintic`] use.
+//!
+//! Coefficient layout (shared by every transform here): a level's data is a flat slice in the
+//! refiner's vertex order ([`crate::subdivision::refine`], ordering contract): the coarse
+//! level's `V` vertices, then one entry per coarse edge, then one per coarse face. Analysis
+//! replaces the first `V` entries by the coarse positions and the rest by detail coefficients,
+//! in place; since each coarse level is a prefix of the finer one, analysing every level of a
+//! hierarchy in place leaves `[base mesh | details of level 0 | details of level 1 | …]`.
+
+pub mod bertram;
