@@ -8,16 +8,20 @@
 //! - [`topology`]: edges, ordered 1-rings, boundary loops, components and tags, as flat tables;
 //! - [`validate`]: the report behind `subwave info` and the checks behind every algorithm;
 //! - [`io`]: OBJ, OFF, PLY, STL readers; OBJ, OFF, PLY, GLB writers;
-//! - [`generate`]: meshes the tests and the demo build themselves.
+//! - [`generate`]: meshes the tests and the demo build themselves;
+//! - [`hierarchy`]: semi-regular meshes (subdivision connectivity, its detection);
+//! - [`wavelet`]: wavelet transforms on semi-regular meshes.
 #![warn(missing_docs)]
 
 pub mod error;
 pub mod generate;
+pub mod hierarchy;
 pub mod io;
 pub mod mesh;
 pub mod subdivision;
 pub mod topology;
 pub mod validate;
+pub mod wavelet;
 
 pub use error::{Error, Location, MeshError, Result};
 pub use glam::DVec3;
