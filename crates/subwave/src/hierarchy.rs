@@ -30,6 +30,7 @@
 //! (with its orientation), so an accepted detection is exact.
 
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 use glam::DVec3;
 
@@ -232,7 +233,7 @@ impl Hierarchy {
         let input: Vec<[u32; 3]> = mesh.faces().map(|f| [f[0], f[1], f[2]]).collect();
         let mut faces = input.clone();
         // Per step (finest first): coarse edge (sorted input ids) -> odd input vertex.
-        let mut steps: Vec<HashMap<u64, u32>> = Vec::new();
+        let mut steps: Vec<OddVertices> = Vec::new();
         loop {
             let step = steps.len() + 1;
             if levels.is_some_and(|l| step > l as usize) {
@@ -307,7 +308,7 @@ impl Hierarchy {
             )));
         }
         // Every rebuilt finest triangle must be an input triangle, with its orientation.
-        let mut by_key: HashMap<[u32; 3], u32> = HashMap::with_capacity(input.len());
+        let mut by_key: IntMap<[u32; 3], u32> = int_map(input.len());
         for (f, t) in input.iter().enumerate() {
             by_key.insert(rotate_min(*t), f as u32);
         }
@@ -376,6 +377,43 @@ fn linear_refine(t: &Topology, split: Split, p: &[DVec3]) -> Vec<DVec3> {
         }));
     }
     out
+}
+
+/// A multiplicative hasher for integer keys (FxHash's mixing): the maps here hold millions
+/// of integer keys, for which SipHash's DoS resistance is not needed.
+#[derive(Default)]
+struct IntHasher(u64);
+
+impl Hasher for IntHasher {
+    #[inline]
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    #[inline]
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    #[inline]
+    fn write_u32(&mut self, x: u32) {
+        self.write_u64(x as u64);
+    }
+    #[inline]
+    fn write_u64(&mut self, x: u64) {
+        self.0 = (self.0.rotate_left(5) ^ x).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    #[inline]
+    fn write_usize(&mut self, x: usize) {
+        self.write_u64(x as u64);
+    }
+}
+
+/// A hash map with [`IntHasher`].
+type IntMap<K, V> = HashMap<K, V, BuildHasherDefault<IntHasher>>;
+
+fn int_map<K, V>(capacity: usize) -> IntMap<K, V> {
+    IntMap::with_capacity_and_hasher(capacity, Default::default())
 }
 
 /// Sorted-pair key of an edge.
@@ -501,7 +539,7 @@ impl Labels<'_> {
 }
 
 /// Per coarse edge (sorted-pair key of its input vertex ids), its odd input vertex.
-type OddVertices = HashMap<u64, u32>;
+type OddVertices = IntMap<u64, u32>;
 
 /// One coarsening step (the inverse of one 1-to-4 split, Maret Fig. 4.4): the coarse
 /// triangles (input vertex ids) and, per coarse edge, its odd vertex.
@@ -606,8 +644,8 @@ fn coarsen(nv: usize, faces: &[[u32; 3]], step: usize) -> Result<(Vec<[u32; 3]>,
     }
     // Groups: each central triangle with its three corner neighbours.
     let mut coarse = Vec::with_capacity(nf / 4);
-    let mut odd: HashMap<u64, u32> = HashMap::with_capacity(nf / 2);
-    let mut odd_edge: HashMap<u32, u64> = HashMap::with_capacity(nf / 2);
+    let mut odd: OddVertices = int_map(nf / 2);
+    let mut odd_edge = vec![u64::MAX; nv];
     let mut grouped = vec![false; nf];
     for c in 0..nf as u32 {
         if labels.face[c as usize] != CENTRAL {
@@ -643,7 +681,11 @@ fn coarsen(nv: usize, faces: &[[u32; 3]], step: usize) -> Result<(Vec<[u32; 3]>,
         coarse.push(even);
         for i in 0..3 {
             let (o, k) = (cv[i], key(even[i], even[(i + 1) % 3]));
-            if *odd.entry(k).or_insert(o) != o || *odd_edge.entry(o).or_insert(k) != k {
+            let oe = &mut odd_edge[o as usize];
+            if *oe == u64::MAX {
+                *oe = k;
+            }
+            if *odd.entry(k).or_insert(o) != o || *oe != k {
                 return Err(fail(Conflict {
                     face: c,
                     reason: "an odd vertex would lie on two coarse edges (or a coarse edge carry two odd vertices)",

@@ -20,11 +20,12 @@
 //!   synthesis `x_even = c − U d`, `x_odd = S_j(x_even)_odd + d`. Midpoint is the lazy
 //!   wavelet with linear prediction ([`TriangleWavelet::midpoint`]); any other interpolating
 //!   scheme plugs in through [`TriangleWavelet::interpolating`] with its level stencil tables.
-//!   **Butterfly hook**: once `Scheme::Butterfly` exists in [`crate::subdivision`],
-//!   `TriangleWavelet::interpolating(h, Refinement::build(&h.base, &opts, true)?.stencils,
-//!   lifted)` with `opts.scheme = Scheme::Butterfly` gives the unlifted and lifted butterfly
-//!   wavelets (`tests::butterfly_hook_with_a_plugged_table` runs the path with a hand-made
-//!   interpolating table).
+//!   **Butterfly hook**: [`TriangleWavelet::from_scheme`] builds the tables of any scheme of
+//!   [`crate::subdivision`] with [`Refinement::build`] and accepts it if it is interpolating;
+//!   once `Scheme::Butterfly` is merged, `from_scheme(h, &opts, lifted)` with
+//!   `opts.scheme = Scheme::Butterfly` gives the unlifted and lifted butterfly wavelets
+//!   (`tests::butterfly_hook_with_a_plugged_table` runs the path with a hand-made
+//!   interpolating table, `tests::from_scheme_midpoint` with the crate's midpoint rules).
 //! - **Loop** ([`Kind::Loop`], PGC): synthesis is Loop subdivision of the coarse level plus
 //!   details at the odd vertices only, `x = S_j c + (0, d)`. Analysis solves the sparse system
 //!   "Loop vertex rule applied to the coarse level = even vertices of the fine level"
@@ -140,6 +141,40 @@ fn require_triangles(h: &Hierarchy) -> Result<()> {
     Ok(())
 }
 
+impl Decomposition {
+    /// The flat layout `[base | details of level 0 | details of level 1 | …]`: the finest
+    /// level's vertex order, each coarse level a prefix (the in-place layout of the quad
+    /// wavelets in [`super`]).
+    pub fn to_flat(&self) -> Vec<DVec3> {
+        let mut out = self.base.clone();
+        for d in &self.details {
+            out.extend_from_slice(d);
+        }
+        out
+    }
+
+    /// The inverse of [`Decomposition::to_flat`] for hierarchy `h` (`V_L` values).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] if `flat` does not have `V_L` values.
+    pub fn from_flat(h: &Hierarchy, flat: &[DVec3]) -> Result<Decomposition> {
+        let l = h.levels();
+        if flat.len() != h.num_vertices(l) {
+            return Err(Error::InvalidArgument(format!(
+                "{} values given, the finest level has {} vertices",
+                flat.len(),
+                h.num_vertices(l)
+            )));
+        }
+        Ok(Decomposition {
+            base: flat[..h.num_vertices(0)].to_vec(),
+            details: (0..l)
+                .map(|j| flat[h.num_vertices(j)..h.num_vertices(j + 1)].to_vec())
+                .collect(),
+        })
+    }
+}
+
 impl<'h> TriangleWavelet<'h> {
     /// The midpoint wavelet: linear prediction (odd vertex − midpoint of its parent edge),
     /// with the update step of the module documentation if `lifted`.
@@ -202,6 +237,24 @@ impl<'h> TriangleWavelet<'h> {
             frame: DetailFrame::Global,
             solver: SolverOptions::default(),
         })
+    }
+
+    /// The wavelet of an interpolating scheme of [`crate::subdivision`], its tables built by
+    /// [`Refinement::build`] on the hierarchy's base mesh (`opts.levels` is ignored). With
+    /// `Scheme::Midpoint` this is [`TriangleWavelet::midpoint`]; with the butterfly scheme
+    /// (once merged) it gives the unlifted and lifted butterfly wavelets of MPEG-4 AFX.
+    ///
+    /// # Errors
+    /// As [`Refinement::build`]; as [`TriangleWavelet::interpolating`] (in particular if the
+    /// scheme is not interpolating).
+    pub fn from_scheme(h: &'h Hierarchy, opts: &SubdivideOptions, lifted: bool) -> Result<Self> {
+        require_triangles(h)?;
+        let o = SubdivideOptions {
+            levels: h.levels() as u32,
+            ..*opts
+        };
+        let r = Refinement::build(&h.base, &o, true)?;
+        Self::interpolating(h, r.stencils, lifted)
     }
 
     /// The Loop wavelet of PGC. `opts` gives the boundary mode, creasing and β of the Loop
@@ -651,6 +704,9 @@ fn solve_even_rows(
             }
         }
         tracing::debug!(iterations = it, "Loop analysis solve");
+        if std::env::var_os("SUBWAVE_SOLVER_TRACE").is_some() {
+            eprintln!("BiCGSTAB: {it} iterations, n = {n}");
+        }
         if it >= opts.max_iterations {
             break;
         }
@@ -1034,6 +1090,28 @@ mod tests {
     }
 
     #[test]
+    fn from_scheme_midpoint() {
+        let h = with_noise(&hills(2), 0.01, 12);
+        let opts = SubdivideOptions {
+            scheme: Scheme::Midpoint,
+            ..Default::default()
+        };
+        for lifted in [false, true] {
+            let a = TriangleWavelet::from_scheme(&h, &opts, lifted).unwrap();
+            let b = TriangleWavelet::midpoint(&h, lifted).unwrap();
+            assert_eq!(a.tables(), b.tables());
+            let d = a.decompose(&h.positions).unwrap();
+            assert_eq!(d, b.decompose(&h.positions).unwrap());
+            // The flat layout round-trips.
+            let flat = d.to_flat();
+            assert_eq!(flat.len(), h.positions.len());
+            assert_eq!(Decomposition::from_flat(&h, &flat).unwrap(), d);
+        }
+        let e = TriangleWavelet::from_scheme(&h, &SubdivideOptions::default(), false).unwrap_err();
+        assert!(e.to_string().contains("not interpolating"), "{e}");
+    }
+
+    #[test]
     fn detected_hierarchy_runs_the_wavelets() {
         // Shuffled input → detect → analyse → synthesise → map back.
         let h = with_noise(&sphere(3), 0.01, 8);
@@ -1056,6 +1134,56 @@ mod tests {
         let dec = w.decompose(&d.positions).unwrap();
         let back = r.to_input(&w.reconstruct(&dec).unwrap());
         assert!(max_dist(&back, &shuffled.positions) <= 1e-12 * diag(&back));
+    }
+
+    /// Timing of the finest Loop analysis level near a million vertices (run with
+    /// `cargo test --release -p subwave --lib loop_analysis_timing -- --ignored --nocapture`).
+    #[test]
+    #[ignore]
+    fn loop_analysis_timing() {
+        let t0 = std::time::Instant::now();
+        let h = with_noise(&sphere(8), 1e-4, 11);
+        let w = TriangleWavelet::loop_pgc(&h, &SubdivideOptions::default()).unwrap();
+        println!(
+            "setup ({} vertices): {:.2} s",
+            h.positions.len(),
+            t0.elapsed().as_secs_f64()
+        );
+        let l = h.levels() - 1;
+        let t = std::time::Instant::now();
+        let (c, d) = w.analyze_level(l, &h.positions).unwrap();
+        println!(
+            "Loop analysis, finest level: {:.3} s",
+            t.elapsed().as_secs_f64()
+        );
+        let t = std::time::Instant::now();
+        let back = w.synthesize_level(l, &c, &d).unwrap();
+        println!(
+            "Loop synthesis, finest level: {:.3} s",
+            t.elapsed().as_secs_f64()
+        );
+        assert!(max_dist(&back, &h.positions) < 1e-12 * 2.0);
+        let t = std::time::Instant::now();
+        let dec = w.decompose(&h.positions).unwrap();
+        println!(
+            "Loop full decomposition: {:.3} s",
+            t.elapsed().as_secs_f64()
+        );
+        let m = TriangleWavelet::midpoint(&h, true).unwrap();
+        let t = std::time::Instant::now();
+        let _ = m.decompose(&h.positions).unwrap();
+        println!(
+            "lifted midpoint full decomposition: {:.3} s",
+            t.elapsed().as_secs_f64()
+        );
+        let t = std::time::Instant::now();
+        let (dh, _) = Hierarchy::detect(&h.finest_mesh(), None).unwrap();
+        println!(
+            "detection ({} levels): {:.2} s",
+            dh.levels(),
+            t.elapsed().as_secs_f64()
+        );
+        drop(dec);
     }
 
     #[test]
