@@ -57,9 +57,12 @@
 //! # Position-dependent masks
 //! Loop's tables come from [`Refinement::build`] on the hierarchy's base mesh (boundaries and
 //! tagged edges as creases, per the [`SubdivideOptions`]). The only masks that depend on
-//! positions are Biermann et al.'s edge rules next to tagged *corners* (the corner's sector
-//! angle): they are evaluated once, with the hierarchy's base positions, so encoder and
-//! decoder must share them; untagged meshes have no position-dependent mask.
+//! positions are Biermann et al.'s edge rules next to *corner* vertices (a corner tag, or
+//! three or more crease edges) with `BoundaryMode::Crease`: they use the corner's sector
+//! angle, evaluated once from the hierarchy's base positions (the finest samples of the base
+//! vertices) and their Loop refinements. A codec must then give the decoder the same angles
+//! (or the same base positions); meshes without such corners (any untagged mesh, with or
+//! without boundary) have no position-dependent mask.
 
 use glam::DVec3;
 use rayon::prelude::*;
