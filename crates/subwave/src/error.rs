@@ -182,6 +182,11 @@ pub enum Error {
     /// A structural problem of a mesh built in memory.
     #[error(transparent)]
     Mesh(#[from] MeshError),
+    /// The mesh has no subdivision connectivity (or fewer levels of it than asked): the
+    /// message names the coarsening step and the triangle that is not part of a 1-to-4
+    /// group. Fix: remesh to subdivision connectivity, or ask for fewer levels.
+    #[error("no subdivision connectivity: {0}")]
+    Hierarchy(String),
     /// A parameter is out of its range. The message says which and what is allowed.
     #[error("{0}")]
     InvalidArgument(String),

@@ -9,15 +9,16 @@
 //! - [`validate`]: the report behind `subwave info` and the checks behind every algorithm;
 //! - [`io`]: OBJ, OFF, PLY, STL readers; OBJ, OFF, PLY, GLB writers;
 //! - [`generate`]: meshes the tests and the demo build themselves;
-//! - [`distance`]: Metro-style surface distance (RMS, Hausdorff, PSNR).
-
-//! - [`wavelet`]: wavelet transforms on subdivision hierarchies (Bertram et al.'s B-spline
-//!   wavelets).
+//! - [`distance`]: Metro-style surface distance (RMS, Hausdorff, PSNR);
+//! - [`hierarchy`]: semi-regular meshes (subdivision connectivity, its detection);
+//! - [`wavelet`]: wavelet transforms on semi-regular meshes (triangle wavelets of Maret ch. 4,
+//!   Bertram et al.'s B-spline wavelets).
 #![warn(missing_docs)]
 
 pub mod distance;
 pub mod error;
 pub mod generate;
+pub mod hierarchy;
 pub mod io;
 pub mod mesh;
 pub mod subdivision;

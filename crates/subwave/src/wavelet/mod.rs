@@ -1,5 +1,10 @@
-//! Wavelet transforms on meshes with subdivision connectivity.
+//! Wavelet transforms on meshes with subdivision connectivity
+//! ([`crate::hierarchy::Hierarchy`]).
 //!
+//! - [`triangle`]: triangle hierarchies, Maret 2003 §4.2.3 (computation of details coefficients)
+//!   and §4.4.3 (details in local frames): midpoint lifted or not, any interpolating scheme's
+//!   prediction (butterfly), Loop as in Khodakovsky–Schröder–Sweldens PGC;
+//! - [`frames`]: the local frames of detail vectors;
 //! - [`bertram`]: Bertram, Duchaineau, Hamann & Joy's generalized (lifted, biorthogonal)
 //!   B-spline wavelets on Catmull-Clark quad hierarchies — linear, cubic and quintic — in
 //!   floating point and as an exact integer-to-integer transform (§3–4.3 of the paper). With
@@ -9,9 +14,11 @@
 //!
 //! Coefficient layout (shared by every transform here): a level's data is a flat slice in the
 //! refiner's vertex order ([`crate::subdivision::refine`], ordering contract): the coarse
-//! level's `V` vertices, then one entry per coarse edge, then one per coarse face. Analysis
-//! replaces the first `V` entries by the coarse positions and the rest by detail coefficients,
-//! in place; since each coarse level is a prefix of the finer one, analysing every level of a
-//! hierarchy in place leaves `[base mesh | details of level 0 | details of level 1 | …]`.
+//! level's `V` vertices, then one entry per coarse edge, then (quad hierarchies) one per coarse
+//! face. Analysis replaces the first `V` entries by the coarse positions and the rest by detail
+//! coefficients; since each coarse level is a prefix of the finer one, analysing every level
+//! leaves `[base mesh | details of level 0 | details of level 1 | …]`.
 
 pub mod bertram;
+pub mod frames;
+pub mod triangle;
