@@ -743,3 +743,17 @@ fn butterfly_original_matches_a_brute_force_8_point_rule() {
         assert_eq!(all.positions, level.positions);
     }
 }
+
+/// Zero levels return the input, attributes included.
+#[test]
+fn zero_levels_keep_colours_and_uvs() {
+    let mut m = generate::icosphere(0);
+    m.colors = Some(vec![[0.5, 0.25, 1.0]; m.num_vertices()]);
+    m.uvs = Some(vec![[0.1, 0.2]; m.num_vertices()]);
+    for scheme in [Scheme::Loop, Scheme::CatmullClark, Scheme::Butterfly] {
+        let r = subdivide(&m, &opts(scheme, 0)).unwrap();
+        assert_eq!(r.positions, m.positions);
+        assert_eq!(r.colors, m.colors);
+        assert_eq!(r.uvs, m.uvs);
+    }
+}

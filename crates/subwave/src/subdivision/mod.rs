@@ -392,7 +392,8 @@ impl Refinement {
     /// [`Error::InvalidArgument`] if the stencils were not kept or `control` has the wrong
     /// length.
     pub fn evaluate<T: Interpolate>(&self, control: &[T]) -> Result<Vec<T>> {
-        Ok(self.evaluate_levels(control)?.pop().unwrap_or_default())
+        let mut levels = self.evaluate_levels(control)?;
+        Ok(levels.pop().unwrap_or_else(|| control.to_vec()))
     }
 
     /// Like [`Refinement::evaluate`], returning every level `1..=levels`.
@@ -400,20 +401,21 @@ impl Refinement {
     /// # Errors
     /// As [`Refinement::evaluate`].
     pub fn evaluate_levels<T: Interpolate>(&self, control: &[T]) -> Result<Vec<Vec<T>>> {
-        let levels = self.topologies.len();
-        if self.stencils.len() != levels || self.stencils.is_empty() && levels > 0 {
+        let levels = self.levels as usize;
+        if self.stencils.len() != levels {
             return Err(Error::InvalidArgument(
                 "stencils were not kept: build the refinement with keep_stencils".into(),
             ));
         }
-        if let Some(t) = self.stencils.first() {
-            if control.len() != t.num_sources as usize {
-                return Err(Error::InvalidArgument(format!(
-                    "{} control values given, the mesh has {} vertices",
-                    control.len(),
-                    t.num_sources
-                )));
-            }
+        let sources = self
+            .stencils
+            .first()
+            .map_or(self.positions.len(), |t| t.num_sources as usize);
+        if control.len() != sources {
+            return Err(Error::InvalidArgument(format!(
+                "{} control values given, the mesh has {sources} vertices",
+                control.len(),
+            )));
         }
         let mut out: Vec<Vec<T>> = Vec::with_capacity(levels);
         for t in &self.stencils {
