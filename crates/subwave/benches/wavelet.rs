@@ -1,0 +1,118 @@
+//! Wavelet transform throughput on hierarchies of about one million vertices (issue "Wavelet
+//! transforms", Performance): forward and inverse, per wavelet, in vertices per second.
+//!
+//! `cargo bench -p subwave --bench wavelet` (criterion's "thrpt" is finest-level vertices per
+//! second). Triangle wavelets run on a torus of 512 triangles refined 6 times (1,050,624
+//! vertices) with Loop-smoothed positions; Bertram's B-spline wavelets on a torus of 256 quads
+//! refined 6 times (1,048,576 vertices) with bicubic-smoothed positions.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use subwave::generate;
+use subwave::hierarchy::Hierarchy;
+use subwave::subdivision::refine::Split;
+use subwave::subdivision::{subdivide, Scheme, SubdivideOptions};
+use subwave::wavelet::bertram::{quad_hierarchy, BSplineWavelet, Degree};
+use subwave::wavelet::triangle::TriangleWavelet;
+
+const LEVELS: u32 = 6;
+
+fn triangles(c: &mut Criterion) {
+    let base = generate::torus(1.0, 0.4, 16, 16, true);
+    let opts = SubdivideOptions {
+        scheme: Scheme::Loop,
+        levels: LEVELS,
+        ..Default::default()
+    };
+    let smooth = subdivide(&base, &opts)
+        .expect("Loop refines the torus")
+        .positions;
+    let h = Hierarchy::new(&base, LEVELS, Split::Triangles, Some(smooth)).expect("hierarchy");
+    let n = h.positions.len();
+    let mut g = c.benchmark_group("triangle_wavelets_1M");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(n as u64));
+    let butterfly = SubdivideOptions {
+        scheme: Scheme::Butterfly,
+        ..Default::default()
+    };
+    let wavelets = [
+        ("midpoint", TriangleWavelet::midpoint(&h, false).unwrap()),
+        (
+            "midpoint-lifted",
+            TriangleWavelet::midpoint(&h, true).unwrap(),
+        ),
+        (
+            "butterfly-lifted",
+            TriangleWavelet::from_scheme(&h, &butterfly, true).unwrap(),
+        ),
+        (
+            "loop",
+            TriangleWavelet::loop_pgc(&h, &SubdivideOptions::default()).unwrap(),
+        ),
+    ];
+    for (name, w) in &wavelets {
+        let d = w.decompose(&h.positions).unwrap();
+        g.bench_function(BenchmarkId::new("forward", name), |b| {
+            b.iter(|| w.decompose(&h.positions).unwrap())
+        });
+        g.bench_function(BenchmarkId::new("inverse", name), |b| {
+            b.iter(|| w.reconstruct(&d).unwrap())
+        });
+    }
+    g.finish();
+}
+
+fn quads(c: &mut Criterion) {
+    let base = generate::torus(1.0, 0.4, 16, 16, false);
+    let r = quad_hierarchy(&base, LEVELS).expect("quad hierarchy");
+    let levels = &r.topologies;
+    let fine = BSplineWavelet::new(Degree::Cubic)
+        .subdivide(levels, &base.positions)
+        .expect("bicubic");
+    let n = fine.len();
+    let mut g = c.benchmark_group("bspline_wavelets_1M");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(n as u64));
+    for degree in [Degree::Linear, Degree::Cubic, Degree::Quintic] {
+        let w = BSplineWavelet::new(degree);
+        let mut data = fine.clone();
+        g.bench_function(BenchmarkId::new("forward", degree.name()), |b| {
+            b.iter(|| {
+                data.copy_from_slice(&fine);
+                w.analyze(levels, &mut data).unwrap()
+            })
+        });
+        let mut coeffs = fine.clone();
+        w.analyze(levels, &mut coeffs).unwrap();
+        g.bench_function(BenchmarkId::new("inverse", degree.name()), |b| {
+            b.iter(|| {
+                data.copy_from_slice(&coeffs);
+                w.synthesize(levels, &mut data).unwrap()
+            })
+        });
+        // Integer: coordinates scaled to 2^20 and rounded.
+        let ints: Vec<[i64; 3]> = fine
+            .iter()
+            .map(|p| (*p * (1 << 20) as f64).round().to_array().map(|x| x as i64))
+            .collect();
+        let mut idata = ints.clone();
+        g.bench_function(BenchmarkId::new("forward-int", degree.name()), |b| {
+            b.iter(|| {
+                idata.copy_from_slice(&ints);
+                w.analyze_int(levels, &mut idata).unwrap()
+            })
+        });
+        let mut icoeffs = ints.clone();
+        w.analyze_int(levels, &mut icoeffs).unwrap();
+        g.bench_function(BenchmarkId::new("inverse-int", degree.name()), |b| {
+            b.iter(|| {
+                idata.copy_from_slice(&icoeffs);
+                w.synthesize_int(levels, &mut idata).unwrap()
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, triangles, quads);
+criterion_main!(benches);
