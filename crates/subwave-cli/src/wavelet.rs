@@ -110,7 +110,14 @@ fn write_human(out: &mut dyn Write, name: &str, r: &WaveletReport) -> std::io::R
     writeln!(
         out,
         "  {:>5} {:>10} {:>12} {:>9} {:>12} {:>10} {:>12} {:>12}",
-        "level", "vertices", "l2 error", "l2 %diag", "max error", "details", "mean detail", "max detail"
+        "level",
+        "vertices",
+        "l2 error",
+        "l2 %diag",
+        "max error",
+        "details",
+        "mean detail",
+        "max detail"
     )?;
     for l in &r.levels {
         writeln!(

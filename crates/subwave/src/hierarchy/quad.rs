@@ -73,13 +73,21 @@ impl Labels<'_> {
         }
     }
 
-    fn assign(&mut self, g: u32, corner: u8, queue: &mut Vec<u32>) -> Result<(), (u32, &'static str)> {
+    fn assign(
+        &mut self,
+        g: u32,
+        corner: u8,
+        queue: &mut Vec<u32>,
+    ) -> Result<(), (u32, &'static str)> {
         let cur = self.face[g as usize];
         if cur == corner {
             return Ok(());
         }
         if cur != UNSET {
-            return Err((g, "its neighbours disagree on which of its corners is an old vertex"));
+            return Err((
+                g,
+                "its neighbours disagree on which of its corners is an old vertex",
+            ));
         }
         self.face[g as usize] = corner;
         self.touched_faces.push(g);
@@ -100,7 +108,10 @@ impl Labels<'_> {
                 self.vert[v as usize] = want;
                 self.touched_verts.push(v);
             } else if cur != want {
-                return Err((g, "its corners cannot read (old vertex, edge point, face point, edge point)"));
+                return Err((
+                    g,
+                    "its corners cannot read (old vertex, edge point, face point, edge point)",
+                ));
             }
         }
         queue.push(g);
@@ -155,7 +166,11 @@ fn coarsen(nv: usize, faces: &[[u32; 4]], step: usize) -> Result<(Vec<[u32; 4]>,
     require_manifold(&topo)?;
     let name = |f: u32| {
         let v = topo.face_vertices(f as usize);
-        let what = if step == 1 { format!("quad {f} (vertices") } else { "coarse quad (input vertices".into() };
+        let what = if step == 1 {
+            format!("quad {f} (vertices")
+        } else {
+            "coarse quad (input vertices".into()
+        };
         format!("{what} {}, {}, {}, {})", v[0], v[1], v[2], v[3])
     };
     let fail = |f: u32, reason: &str| {
@@ -274,7 +289,10 @@ fn coarsen(nv: usize, faces: &[[u32; 4]], step: usize) -> Result<(Vec<[u32; 4]>,
             }
         }
         if ms[3] != child(first).2 {
-            return Err(fail(first, "the quads around its face point do not close up"));
+            return Err(fail(
+                first,
+                "the quads around its face point do not close up",
+            ));
         }
         if (0..4).any(|i| (i + 1..4).any(|j| vs[i] == vs[j] || ms[i] == ms[j])) {
             return Err(fail(first, "its group would make a degenerate coarse quad"));
@@ -469,7 +487,9 @@ mod tests {
             .faces()
             .map(|f| {
                 let r = rng.below(f.len());
-                (0..f.len()).map(|i| perm[f[(i + r) % f.len()] as usize]).collect()
+                (0..f.len())
+                    .map(|i| perm[f[(i + r) % f.len()] as usize])
+                    .collect()
             })
             .collect();
         for i in (1..faces.len()).rev() {

@@ -285,7 +285,11 @@ pub fn analyze_report(mesh: &Mesh, kind: WaveletKind, frame: DetailFrame) -> Res
                 level: j,
                 vertices: h.num_vertices(j),
                 l2_error: l2,
-                l2_percent: if diagonal > 0.0 { 100.0 * l2 / diagonal } else { 0.0 },
+                l2_percent: if diagonal > 0.0 {
+                    100.0 * l2 / diagonal
+                } else {
+                    0.0
+                },
                 max_error: mx,
                 details: norms.len(),
                 mean_detail: if norms.is_empty() {
@@ -305,7 +309,12 @@ pub fn analyze_report(mesh: &Mesh, kind: WaveletKind, frame: DetailFrame) -> Res
             DetailFrame::Local => "local",
         }
         .into(),
-        split: if want == Split::Triangles { "triangles" } else { "quads" }.into(),
+        split: if want == Split::Triangles {
+            "triangles"
+        } else {
+            "quads"
+        }
+        .into(),
         num_levels: l,
         base_vertices: h.base.num_vertices(),
         base_faces: h.base.num_faces(),
@@ -513,10 +522,22 @@ mod tests {
         let ico = generate::icosahedron();
         let cases = [
             (sub(&ico, Scheme::Midpoint, 3), WaveletKind::Midpoint, 1e-12),
-            (sub(&ico, Scheme::Butterfly, 3), WaveletKind::Butterfly, 1e-12),
+            (
+                sub(&ico, Scheme::Butterfly, 3),
+                WaveletKind::Butterfly,
+                1e-12,
+            ),
             (sub(&ico, Scheme::Loop, 3), WaveletKind::Loop, 1e-7),
-            (sub(&generate::cube(), Scheme::Bilinear, 3), WaveletKind::Linear, 1e-12),
-            (sub(&generate::cube(), Scheme::Bicubic, 3), WaveletKind::Cubic, 1e-12),
+            (
+                sub(&generate::cube(), Scheme::Bilinear, 3),
+                WaveletKind::Linear,
+                1e-12,
+            ),
+            (
+                sub(&generate::cube(), Scheme::Bicubic, 3),
+                WaveletKind::Cubic,
+                1e-12,
+            ),
         ];
         for (m, kind, tol) in cases {
             let r = analyze_report(&m, kind, DetailFrame::Global).unwrap();
@@ -524,8 +545,20 @@ mod tests {
             assert_eq!(r.levels.len(), 4);
             assert_eq!(r.levels[3].vertices, m.num_vertices());
             for l in &r.levels {
-                assert!(l.max_error < tol, "{} level {}: {}", kind.name(), l.level, l.max_error);
-                assert!(l.max_detail < tol, "{} level {}: {}", kind.name(), l.level, l.max_detail);
+                assert!(
+                    l.max_error < tol,
+                    "{} level {}: {}",
+                    kind.name(),
+                    l.level,
+                    l.max_error
+                );
+                assert!(
+                    l.max_detail < tol,
+                    "{} level {}: {}",
+                    kind.name(),
+                    l.level,
+                    l.max_detail
+                );
             }
             assert!(r.reconstruction_max_error < tol);
         }
@@ -535,14 +568,28 @@ mod tests {
     fn noisy_mesh_errors_decrease_and_reconstruct() {
         let mut m = sub(&generate::cube(), Scheme::CatmullClark, 3);
         for (i, p) in m.positions.iter_mut().enumerate() {
-            *p += 0.01 * DVec3::new((i as f64).sin(), (1.7 * i as f64).cos(), (0.3 * i as f64).sin());
+            *p += 0.01
+                * DVec3::new(
+                    (i as f64).sin(),
+                    (1.7 * i as f64).cos(),
+                    (0.3 * i as f64).sin(),
+                );
         }
-        for kind in [WaveletKind::Linear, WaveletKind::Cubic, WaveletKind::CubicInt, WaveletKind::QuinticInt] {
+        for kind in [
+            WaveletKind::Linear,
+            WaveletKind::Cubic,
+            WaveletKind::CubicInt,
+            WaveletKind::QuinticInt,
+        ] {
             let r = analyze_report(&m, kind, DetailFrame::Global).unwrap();
             assert_eq!(r.base_vertices, 8);
             assert_eq!(r.base_faces, 6);
             assert_eq!(r.levels[3].l2_error, 0.0);
-            assert!(r.levels[0].l2_error > r.levels[2].l2_error, "{}", kind.name());
+            assert!(
+                r.levels[0].l2_error > r.levels[2].l2_error,
+                "{}",
+                kind.name()
+            );
             assert!(r.levels[2].mean_detail > 0.0);
             if kind.name().ends_with("-int") {
                 assert_eq!(r.reconstruction_max_error, 0.0);
@@ -561,8 +608,12 @@ mod tests {
         let tri = sub(&generate::icosahedron(), Scheme::Loop, 2);
         let e = analyze_report(&tri, WaveletKind::Cubic, DetailFrame::Global).unwrap_err();
         assert!(e.to_string().contains("midpoint, midpoint-lifted"), "{e}");
-        let e = analyze_report(&generate::icosahedron(), WaveletKind::Loop, DetailFrame::Global)
-            .unwrap_err();
+        let e = analyze_report(
+            &generate::icosahedron(),
+            WaveletKind::Loop,
+            DetailFrame::Global,
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("coarsening step 1"), "{e}");
     }
 }
