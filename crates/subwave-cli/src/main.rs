@@ -17,6 +17,7 @@ mod distance;
 mod info;
 mod print;
 mod subdivide;
+mod wavelet;
 
 use subwave::io::Format;
 
@@ -48,6 +49,10 @@ enum Command {
     /// Metro-style symmetric surface distance between two meshes: RMS both ways, Hausdorff,
     /// PSNR = 20 log10(diagonal of A / larger RMS).
     Distance(DistanceArgs),
+    /// Wavelet analysis of a semi-regular mesh (detected 1-to-4 triangle or Catmull-Clark
+    /// quad splits): per-level approximation errors, detail statistics, reconstruction
+    /// error and forward/inverse times.
+    Wavelet(WaveletArgs),
     /// Benchmarks without file output (medians of several runs).
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -67,6 +72,29 @@ pub struct DistanceArgs {
           value_parser = clap::value_parser!(u64).range(1..=100_000_000))]
     pub samples: u64,
     /// Print JSON (keys rms, max, psnr, rms_ab, rms_ba, diagonal, ab, ba).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `subwave wavelet`.
+#[derive(Debug, clap::Args)]
+pub struct WaveletArgs {
+    /// The semi-regular mesh (`-` reads standard input and needs --format).
+    #[arg(value_name = "MESH")]
+    pub mesh: PathBuf,
+    /// The input format, if the extension does not tell it.
+    #[arg(short, long, value_name = "F", value_parser = parse_format)]
+    pub format: Option<Format>,
+    /// The wavelet: midpoint, butterfly, loop (triangle meshes); linear, cubic, quintic and
+    /// their -int integer versions (quad meshes).
+    #[arg(long, value_enum)]
+    pub wavelet: wavelet::WaveletArg,
+    /// Coordinates of the detail vectors (local frames: triangle wavelets only).
+    #[arg(long, value_enum, default_value = "global")]
+    pub frames: wavelet::FramesArg,
+    /// Print JSON (keys wavelet, levels [{level, vertices, l2_error, l2_percent, max_error,
+    /// details, mean_detail, max_detail}], reconstruction_max_error, forward_ms, inverse_ms,
+    /// base_vertices, base_faces, ...).
     #[arg(long)]
     pub json: bool,
 }
@@ -264,6 +292,7 @@ fn main() -> ExitCode {
         Command::Demo(args) => demo::run(&args),
         Command::Subdivide(args) => subdivide::run(&args),
         Command::Distance(args) => distance::run(&args),
+        Command::Wavelet(args) => wavelet::run(&args),
         Command::Bench(BenchCommand::Subdivide(args)) => bench::subdivide(&args),
     };
     match result {

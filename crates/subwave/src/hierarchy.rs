@@ -12,7 +12,9 @@
 //!
 //! [`Hierarchy::detect`] recovers the structure from a triangle mesh given in any vertex and
 //! face order (the inverse of the 1-to-4 split, applied repeatedly as in Fig. 4.4) and
-//! renumbers it into the contract, returning the permutation ([`Renumbering`]).
+//! renumbers it into the contract, returning the permutation ([`Renumbering`]). All-quad
+//! meshes are detected as Catmull-Clark (1-to-4 quad) splits instead (`hierarchy/quad.rs`,
+//! Bertram et al. §4.1 Fig. 7), giving a [`Split::Polygons`] hierarchy.
 //!
 //! # Detection (one coarsening step)
 //! In a 1-to-4 split, every child triangle is either a *central* triangle (three odd
@@ -40,6 +42,8 @@ use crate::subdivision::MAX_FACES;
 use crate::topology::{Topology, VertexKind};
 use crate::validate::{require_arity, require_manifold};
 use crate::{Error, Result};
+
+mod quad;
 
 /// A semi-regular mesh: base mesh, per-level topology, finest positions.
 #[derive(Clone, Debug)]
@@ -208,8 +212,10 @@ impl Hierarchy {
         }
     }
 
-    /// Detects subdivision connectivity (1-to-4 triangle splits) in `mesh`, whose vertices
-    /// and faces may be in any order, and renumbers it into the ordering contract.
+    /// Detects subdivision connectivity (1-to-4 triangle splits, or for an all-quad mesh
+    /// Catmull-Clark 1-to-4 quad splits giving a [`Split::Polygons`] hierarchy with an
+    /// all-quad base, see `hierarchy/quad.rs`) in `mesh`, whose vertices and faces may be in
+    /// any order, and renumbers it into the ordering contract.
     ///
     /// With `levels = Some(L)`, exactly `L` coarsening steps are required; with `None`, as
     /// many as the mesh allows (at least one). Unreferenced vertices become isolated base
@@ -222,10 +228,13 @@ impl Hierarchy {
     /// 3, 17, 40) is not part of a 1-to-4 group: ...").
     pub fn detect(mesh: &Mesh, levels: Option<u32>) -> Result<(Hierarchy, Renumbering)> {
         mesh.check_indices()?;
+        if mesh.num_faces() > 0 && mesh.is_quad_mesh() {
+            return quad::detect_quads(mesh, levels);
+        }
         require_arity(
             mesh,
             3,
-            "subdivision-connectivity detection",
+            "subdivision-connectivity detection (triangles; all-quad meshes are detected as Catmull-Clark splits)",
             "triangles",
             "triangulate the mesh first (it then has no 1-to-4 structure unless it was built by one)",
         )?;
@@ -883,8 +892,10 @@ mod tests {
         m.face_indices[s..s + 3].copy_from_slice(&[d, b, c]);
         let e = Hierarchy::detect(&m, Some(1)).unwrap_err();
         assert!(e.to_string().contains("1-to-4 group"), "{e}");
-        // Quads are refused with a clear message.
+        // The cube is no Catmull-Clark split; mixed meshes are refused.
         let e = Hierarchy::detect(&generate::cube(), None).unwrap_err();
+        assert!(e.to_string().contains("coarsening step 1"), "{e}");
+        let e = Hierarchy::detect(&generate::pyramid(), None).unwrap_err();
         assert!(e.to_string().contains("triangles"), "{e}");
     }
 }

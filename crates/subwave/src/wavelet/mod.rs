@@ -5,6 +5,8 @@
 //!   and §4.4.3 (details in local frames): midpoint lifted or not, any interpolating scheme's
 //!   prediction (butterfly), Loop as in Khodakovsky–Schröder–Sweldens PGC;
 //! - [`frames`]: the local frames of detail vectors;
+//! - [`report`]: per-level errors, detail statistics, reconstruction error and timings of
+//!   any of these wavelets on a detected semi-regular mesh (`subwave wavelet`);
 //! - [`bertram`]: Bertram, Duchaineau, Hamann & Joy's generalized (lifted, biorthogonal)
 //!   B-spline wavelets on Catmull-Clark quad hierarchies — linear, cubic and quintic — in
 //!   floating point and as an exact integer-to-integer transform (§3–4.3 of the paper). With
@@ -21,4 +23,5 @@
 
 pub mod bertram;
 pub mod frames;
+pub mod report;
 pub mod triangle;
