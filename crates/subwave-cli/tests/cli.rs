@@ -640,6 +640,21 @@ fn check_demo_folder(dir: &Path, vertices: i64) {
     assert_eq!(field(&j, "vertices"), vertices);
     let j = info_json(dir.join("five-blobs.ply").to_str().unwrap());
     assert_eq!(field(&j, "non_manifold_edges"), 0);
+    // The wavelet step: Loop and lifted butterfly on the detected hierarchy, reconstructing
+    // the mesh to rounding error, with details that shrink from level to level.
+    let w = report["wavelets"].as_array().expect("wavelets section");
+    assert_eq!(w.len(), 2, "{report:#}");
+    for r in w {
+        assert!(
+            r["reconstruction_max_error"].as_f64().unwrap() < 1e-12,
+            "{r:#}"
+        );
+        let levels = r["levels"].as_array().unwrap();
+        assert!(levels.len() >= 3, "{r:#}");
+        let first = levels[0]["mean_detail"].as_f64().unwrap();
+        let last = levels[levels.len() - 2]["mean_detail"].as_f64().unwrap();
+        assert!(last < first, "{r:#}");
+    }
 }
 
 #[test]
