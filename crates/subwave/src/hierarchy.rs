@@ -444,9 +444,127 @@ const EVEN: u8 = 1;
 const ODD: u8 = 2;
 
 /// A failed labelling: the triangle where it failed and why.
-struct Conflict {
-    face: u32,
-    reason: &'static str,
+pub(crate) struct Conflict {
+    pub(crate) face: u32,
+    pub(crate) reason: &'static str,
+}
+
+/// One coarsening step's labelling of faces and vertices, as [`label_components`] drives it.
+pub(crate) trait Labelling {
+    /// Starts a hypothesis (forgets which labels the previous one set).
+    fn begin(&mut self);
+    /// Propagates `label` of face `seed` over its edge-connected component.
+    fn propagate(&mut self, seed: u32, label: u8) -> std::result::Result<(), Conflict>;
+    /// Clears the labels set since [`Labelling::begin`].
+    fn reset(&mut self);
+}
+
+/// Labels every edge-connected component of `topo` (see [`first_labelling`]): `pinned(v)` is
+/// true for vertices whose label is forced (they fix the seed), `noun` names the faces and
+/// `name` a face in messages, `fail` turns a conflict into the error to return.
+pub(crate) fn label_components(
+    topo: &Topology,
+    step: usize,
+    noun: &str,
+    name: &dyn Fn(u32) -> String,
+    pinned: &dyn Fn(u32) -> bool,
+    labels: &mut impl Labelling,
+    fail: &dyn Fn(Conflict) -> Error,
+) -> Result<()> {
+    for members in edge_components(topo) {
+        let start = members[0];
+        if members.len() % 4 != 0 {
+            return Err(Error::Hierarchy(format!(
+                "coarsening step {step}: the part of the mesh around {} has {} {noun}, not a multiple of 4",
+                name(start),
+                members.len()
+            )));
+        }
+        let forced = members.iter().find_map(|&f| {
+            topo.face_vertices(f as usize)
+                .iter()
+                .position(|&v| pinned(v))
+                .map(|i| (f, i as u8))
+        });
+        first_labelling(start, forced, |seed, l| {
+            labels.begin();
+            let r = labels.propagate(seed, l);
+            if r.is_err() {
+                labels.reset();
+            }
+            r
+        })
+        .map_err(fail)?;
+    }
+    Ok(())
+}
+
+impl Labelling for Labels<'_> {
+    fn begin(&mut self) {
+        self.touched_faces.clear();
+        self.touched_verts.clear();
+    }
+    fn propagate(&mut self, seed: u32, label: u8) -> std::result::Result<(), Conflict> {
+        self.propagate_from(seed, label)
+    }
+    fn reset(&mut self) {
+        self.clear_touched();
+    }
+}
+
+/// The edge-connected components of `topo`'s faces (faces sharing an edge), each listed from
+/// its smallest face, in order of that face.
+pub(crate) fn edge_components(topo: &Topology) -> Vec<Vec<u32>> {
+    let nf = topo.num_faces();
+    let mut seen = vec![false; nf];
+    let mut stack = Vec::new();
+    let mut out = Vec::new();
+    for start in 0..nf as u32 {
+        if seen[start as usize] {
+            continue;
+        }
+        seen[start as usize] = true;
+        stack.push(start);
+        let mut members = vec![start];
+        while let Some(f) = stack.pop() {
+            for &e in topo.face_edges(f as usize) {
+                for &g in topo.edge_faces(e as usize) {
+                    if !seen[g as usize] {
+                        seen[g as usize] = true;
+                        stack.push(g);
+                        members.push(g);
+                    }
+                }
+            }
+        }
+        out.push(members);
+    }
+    out
+}
+
+/// Labels one component from a seed: the `forced` (face, label) if a vertex pins it, else each
+/// of the four labels of `start` in turn. `attempt` propagates one hypothesis (undoing its
+/// partial labels when it fails); the first success wins, otherwise the first failure is
+/// returned.
+pub(crate) fn first_labelling<E>(
+    start: u32,
+    forced: Option<(u32, u8)>,
+    mut attempt: impl FnMut(u32, u8) -> std::result::Result<(), E>,
+) -> std::result::Result<(), E> {
+    let hypotheses: Vec<(u32, u8)> = match forced {
+        Some(h) => vec![h],
+        None => (0..4).map(|l| (start, l)).collect(),
+    };
+    let mut first_err = None;
+    for (seed, l) in hypotheses {
+        match attempt(seed, l) {
+            Ok(()) => return Ok(()),
+            Err(e) => {
+                first_err.get_or_insert(e);
+            }
+        }
+    }
+    Err(first_err.expect("at least one hypothesis"))
 }
 
 /// Labelling state of one coarsening step.
@@ -495,7 +613,7 @@ impl Labels<'_> {
     }
 
     /// Propagates the labelling from `seed` over its edge-connected component.
-    fn propagate(&mut self, seed: u32, label: u8) -> Result<(), Conflict> {
+    fn propagate_from(&mut self, seed: u32, label: u8) -> std::result::Result<(), Conflict> {
         let topo = self.topo;
         let mut queue = Vec::new();
         self.assign(seed, label, &mut queue)?;
@@ -537,7 +655,7 @@ impl Labels<'_> {
         Ok(())
     }
 
-    fn reset(&mut self) {
+    fn clear_touched(&mut self) {
         for f in self.touched_faces.drain(..) {
             self.face[f as usize] = UNSET;
         }
@@ -594,63 +712,15 @@ fn coarsen(nv: usize, faces: &[[u32; 3]], step: usize) -> Result<(Vec<[u32; 3]>,
         touched_verts: Vec::new(),
     };
     // Edge-connected components, each labelled from one seed.
-    let mut comp = vec![u32::MAX; nf];
-    let mut stack = Vec::new();
-    for start in 0..nf as u32 {
-        if comp[start as usize] != u32::MAX {
-            continue;
-        }
-        comp[start as usize] = start;
-        stack.push(start);
-        let mut members = vec![start];
-        while let Some(f) = stack.pop() {
-            for &e in topo.face_edges(f as usize) {
-                for &g in topo.edge_faces(e as usize) {
-                    if comp[g as usize] == u32::MAX {
-                        comp[g as usize] = start;
-                        stack.push(g);
-                        members.push(g);
-                    }
-                }
-            }
-        }
-        if members.len() % 4 != 0 {
-            return Err(Error::Hierarchy(format!(
-                "coarsening step {step}: the part of the mesh around {} has {} triangles, not a multiple of 4",
-                name(start),
-                members.len()
-            )));
-        }
-        let forced = members.iter().find_map(|&f| {
-            topo.face_vertices(f as usize)
-                .iter()
-                .position(|&v| forced_even(v))
-                .map(|i| (f, i as u8))
-        });
-        let hypotheses: Vec<(u32, u8)> = match forced {
-            Some(h) => vec![h],
-            None => (0..4).map(|l| (start, l)).collect(),
-        };
-        let mut first_err = None;
-        let mut ok = false;
-        for (seed, l) in hypotheses {
-            labels.touched_faces.clear();
-            labels.touched_verts.clear();
-            match labels.propagate(seed, l) {
-                Ok(()) => {
-                    ok = true;
-                    break;
-                }
-                Err(c) => {
-                    labels.reset();
-                    first_err.get_or_insert(c);
-                }
-            }
-        }
-        if !ok {
-            return Err(fail(first_err.unwrap()));
-        }
-    }
+    label_components(
+        &topo,
+        step,
+        "triangles",
+        &name,
+        &forced_even,
+        &mut labels,
+        &fail,
+    )?;
     // Groups: each central triangle with its three corner neighbours.
     let mut coarse = Vec::with_capacity(nf / 4);
     let mut odd: OddVertices = int_map(nf / 2);

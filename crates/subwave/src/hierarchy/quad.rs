@@ -26,7 +26,10 @@
 
 use glam::DVec3;
 
-use super::{int_map, key, Hierarchy, IntMap, OddVertices, Renumbering};
+use super::{
+    int_map, key, label_components, Conflict, Hierarchy, IntMap, Labelling, OddVertices,
+    Renumbering,
+};
 use crate::mesh::Mesh;
 use crate::subdivision::refine::{refine_topology, Split};
 use crate::topology::{Topology, VertexKind};
@@ -118,7 +121,7 @@ impl Labels<'_> {
         Ok(())
     }
 
-    fn propagate(&mut self, seed: u32, corner: u8) -> Result<(), (u32, &'static str)> {
+    fn propagate_from(&mut self, seed: u32, corner: u8) -> Result<(), (u32, &'static str)> {
         let mut queue = Vec::new();
         self.assign(seed, corner, &mut queue)?;
         while let Some(f) = queue.pop() {
@@ -149,13 +152,27 @@ impl Labels<'_> {
         Ok(())
     }
 
-    fn reset(&mut self) {
+    fn clear_touched(&mut self) {
         for f in self.touched_faces.drain(..) {
             self.face[f as usize] = UNSET;
         }
         for v in self.touched_verts.drain(..) {
             self.vert[v as usize] = UNSET;
         }
+    }
+}
+
+impl Labelling for Labels<'_> {
+    fn begin(&mut self) {
+        self.touched_faces.clear();
+        self.touched_verts.clear();
+    }
+    fn propagate(&mut self, seed: u32, label: u8) -> std::result::Result<(), Conflict> {
+        self.propagate_from(seed, label)
+            .map_err(|(face, reason)| Conflict { face, reason })
+    }
+    fn reset(&mut self) {
+        self.clear_touched();
     }
 }
 
@@ -197,64 +214,15 @@ fn coarsen(nv: usize, faces: &[[u32; 4]], step: usize) -> Result<(Vec<[u32; 4]>,
         touched_faces: Vec::new(),
         touched_verts: Vec::new(),
     };
-    let mut comp = vec![false; nf];
-    let mut stack = Vec::new();
-    for start in 0..nf as u32 {
-        if comp[start as usize] {
-            continue;
-        }
-        comp[start as usize] = true;
-        stack.push(start);
-        let mut members = vec![start];
-        while let Some(f) = stack.pop() {
-            for &e in topo.face_edges(f as usize) {
-                for &g in topo.edge_faces(e as usize) {
-                    if !comp[g as usize] {
-                        comp[g as usize] = true;
-                        stack.push(g);
-                        members.push(g);
-                    }
-                }
-            }
-        }
-        if members.len() % 4 != 0 {
-            return Err(Error::Hierarchy(format!(
-                "coarsening step {step}: the part of the mesh around {} has {} quads, not a multiple of 4",
-                name(start),
-                members.len()
-            )));
-        }
-        let forced = members.iter().find_map(|&f| {
-            topo.face_vertices(f as usize)
-                .iter()
-                .position(|&v| forced_v(v))
-                .map(|i| (f, i as u8))
-        });
-        let hypotheses: Vec<(u32, u8)> = match forced {
-            Some(h) => vec![h],
-            None => (0..4).map(|c| (start, c)).collect(),
-        };
-        let mut first_err = None;
-        let mut ok = false;
-        for (seed, c) in hypotheses {
-            labels.touched_faces.clear();
-            labels.touched_verts.clear();
-            match labels.propagate(seed, c) {
-                Ok(()) => {
-                    ok = true;
-                    break;
-                }
-                Err(e) => {
-                    labels.reset();
-                    first_err.get_or_insert(e);
-                }
-            }
-        }
-        if !ok {
-            let (f, reason) = first_err.unwrap();
-            return Err(fail(f, reason));
-        }
-    }
+    label_components(
+        &topo,
+        step,
+        "quads",
+        &name,
+        &forced_v,
+        &mut labels,
+        &|c: Conflict| fail(c.face, c.reason),
+    )?;
     // Groups: the four quads around each face point, chained by their shared edge points.
     let mut coarse = Vec::with_capacity(nf / 4);
     let mut out = QuadStep {
