@@ -6,7 +6,7 @@
 //! vertices) with Loop-smoothed positions; Bertram's B-spline wavelets on a torus of 256 quads
 //! refined 6 times (1,048,576 vertices) with bicubic-smoothed positions.
 
-use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
 use subwave::generate;
 use subwave::hierarchy::Hierarchy;
 use subwave::subdivision::refine::Split;
@@ -57,6 +57,26 @@ fn triangles(c: &mut Criterion) {
         });
         g.bench_function(BenchmarkId::new("inverse", name), |b| {
             b.iter(|| w.reconstruct(&d).unwrap())
+        });
+        if *name == "loop" {
+            continue;
+        }
+        // The lifting scheme proper: in place, no allocation (the copy of the input is
+        // set-up, outside the timing).
+        g.bench_function(BenchmarkId::new("forward-in-place", name), |b| {
+            b.iter_batched_ref(
+                || h.positions.clone(),
+                |data| w.decompose_in_place(data).unwrap(),
+                BatchSize::LargeInput,
+            )
+        });
+        let flat = d.to_flat();
+        g.bench_function(BenchmarkId::new("inverse-in-place", name), |b| {
+            b.iter_batched_ref(
+                || flat.clone(),
+                |data| w.reconstruct_in_place(data).unwrap(),
+                BatchSize::LargeInput,
+            )
         });
     }
     g.finish();

@@ -472,6 +472,97 @@ impl<'h> TriangleWavelet<'h> {
         Ok(fine)
     }
 
+    /// Full analysis in place: `data` holds the finest level (`V_L` values) on entry and the
+    /// flat layout of [`Decomposition::to_flat`] (`[base | details 0 | … | details L−1]`) on
+    /// return, bit for bit equal to [`TriangleWavelet::decompose`] followed by `to_flat`.
+    ///
+    /// For interpolating wavelets with global details this is the lifting scheme proper: per
+    /// level one pass over the odd vertices (prediction) and, if lifted, one over the even
+    /// vertices (update), with no allocation. Loop and local frames go through
+    /// [`TriangleWavelet::analyze_level`] (a solve or the frames need the predicted level).
+    ///
+    /// # Errors
+    /// As [`TriangleWavelet::analyze_level`]; a wrong length.
+    pub fn decompose_in_place(&self, data: &mut [DVec3]) -> Result<()> {
+        let l = self.tables.len();
+        Self::check_len("finest", l, data.len(), self.h.num_vertices(l))?;
+        for j in (0..l).rev() {
+            let n = self.h.num_vertices(j + 1);
+            let nc = self.h.num_vertices(j);
+            match (self.kind, self.frame) {
+                (Kind::Interpolating { lifted }, DetailFrame::Global) => {
+                    let (even, odd) = data[..n].split_at_mut(nc);
+                    self.predict_odd(j, even, odd, -1.0);
+                    if lifted {
+                        self.update(j, even, odd, 1.0);
+                    }
+                }
+                _ => {
+                    let (c, d) = self.analyze_level(j, &data[..n])?;
+                    data[..nc].copy_from_slice(&c);
+                    data[nc..n].copy_from_slice(&d);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Full synthesis in place: the inverse of [`TriangleWavelet::decompose_in_place`]
+    /// (`data` in the flat layout on entry, the finest level on return), bit for bit equal to
+    /// [`TriangleWavelet::reconstruct`] of the same decomposition.
+    ///
+    /// # Errors
+    /// As [`TriangleWavelet::synthesize_level`]; a wrong length.
+    pub fn reconstruct_in_place(&self, data: &mut [DVec3]) -> Result<()> {
+        let l = self.tables.len();
+        Self::check_len("flat", l, data.len(), self.h.num_vertices(l))?;
+        for j in 0..l {
+            let n = self.h.num_vertices(j + 1);
+            let nc = self.h.num_vertices(j);
+            match (self.kind, self.frame) {
+                (Kind::Interpolating { lifted }, DetailFrame::Global) => {
+                    let (even, odd) = data[..n].split_at_mut(nc);
+                    if lifted {
+                        self.update(j, even, odd, -1.0);
+                    }
+                    self.predict_odd(j, even, odd, 1.0);
+                }
+                _ => {
+                    let (c, d) = data[..n].split_at(nc);
+                    let fine = self.synthesize_level(j, c, d)?;
+                    data[..n].copy_from_slice(&fine);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// `odd[e] = sign · odd[e] + (S_j even)_{odd e}` for `sign = 1` (synthesis), or
+    /// `odd[e] − (S_j even)_{odd e}` for `sign = −1` (analysis), in place: the odd rows of
+    /// level `level`'s table, summed in stencil order as [`StencilTable::apply`] does.
+    fn predict_odd(&self, level: usize, even: &[DVec3], odd: &mut [DVec3], sign: f64) {
+        let t = &self.tables[level];
+        let nc = even.len();
+        odd.par_chunks_mut(ODD_CHUNK)
+            .enumerate()
+            .for_each(|(c, out)| {
+                let first = nc + c * ODD_CHUNK;
+                for (i, x) in out.iter_mut().enumerate() {
+                    let r = first + i;
+                    let (a, b) = (t.offsets[r] as usize, t.offsets[r + 1] as usize);
+                    let mut acc = DVec3::ZERO;
+                    for (&k, &w) in t.indices[a..b].iter().zip(&t.weights[a..b]) {
+                        acc += w * even[k as usize];
+                    }
+                    if sign > 0.0 {
+                        *x += acc;
+                    } else {
+                        *x -= acc;
+                    }
+                }
+            });
+    }
+
     /// Full analysis of finest-level positions (`V_L` values) down to the base.
     ///
     /// # Errors
@@ -538,6 +629,9 @@ fn check_tables(h: &Hierarchy, tables: &[StencilTable]) -> Result<()> {
 fn sub(a: &[DVec3], b: &[DVec3]) -> Vec<DVec3> {
     a.par_iter().zip(b).map(|(x, y)| *x - *y).collect()
 }
+
+/// Odd vertices per parallel work item of the in-place prediction.
+const ODD_CHUNK: usize = 8192;
 
 /// Rows per parallel work item of the solver.
 const ROWS: usize = 4096;
@@ -843,6 +937,55 @@ mod tests {
             ));
         }
         out
+    }
+
+    /// The in-place transforms equal the allocating ones bit for bit (all kinds, both
+    /// frames, with boundary), and invert each other.
+    #[test]
+    fn in_place_equals_allocating() {
+        let meshes = [
+            ("sphere", with_noise(&sphere(3), 0.02, 11)),
+            ("hills", with_noise(&hills(3), 0.02, 12)),
+        ];
+        for (name, h) in &meshes {
+            let mut all = wavelets(h);
+            all.push((
+                "butterfly-lifted",
+                TriangleWavelet::from_scheme(
+                    h,
+                    &SubdivideOptions {
+                        scheme: Scheme::Butterfly,
+                        ..Default::default()
+                    },
+                    true,
+                )
+                .unwrap(),
+            ));
+            for (wname, w) in all {
+                let flat = w.decompose(&h.positions).unwrap().to_flat();
+                let mut data = h.positions.clone();
+                w.decompose_in_place(&mut data).unwrap();
+                assert!(
+                    data.iter()
+                        .zip(&flat)
+                        .all(|(a, b)| a.to_array() == b.to_array()),
+                    "{name} {wname}: in-place analysis differs"
+                );
+                let d = Decomposition::from_flat(h, &flat).unwrap();
+                let back = w.reconstruct(&d).unwrap();
+                w.reconstruct_in_place(&mut data).unwrap();
+                assert!(
+                    data.iter()
+                        .zip(&back)
+                        .all(|(a, b)| a.to_array() == b.to_array()),
+                    "{name} {wname}: in-place synthesis differs"
+                );
+                let tol = 1e-12 * diag(&h.positions);
+                assert!(max_dist(&data, &h.positions) <= tol, "{name} {wname}");
+            }
+            let w = TriangleWavelet::midpoint(h, true).unwrap();
+            assert!(w.decompose_in_place(&mut vec![DVec3::ZERO; 5]).is_err());
+        }
     }
 
     #[test]
