@@ -984,7 +984,7 @@ mod tests {
                 assert!(max_dist(&data, &h.positions) <= tol, "{name} {wname}");
             }
             let w = TriangleWavelet::midpoint(h, true).unwrap();
-            assert!(w.decompose_in_place(&mut vec![DVec3::ZERO; 5]).is_err());
+            assert!(w.decompose_in_place(&mut [DVec3::ZERO; 5]).is_err());
         }
     }
 
