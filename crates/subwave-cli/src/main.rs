@@ -16,6 +16,7 @@ mod demo;
 mod distance;
 mod info;
 mod print;
+mod stability;
 mod subdivide;
 mod wavelet;
 
@@ -53,6 +54,10 @@ enum Command {
     /// quad splits): per-level approximation errors, detail statistics, reconstruction
     /// error and forward/inverse times.
     Wavelet(WaveletArgs),
+    /// Bertram et al.'s stability experiment (§5.2, Fig. 17): white noise added to a
+    /// subdivided mesh, low-passed level by level by the linear, cubic and quintic B-spline
+    /// wavelets; prints the noise left at each level.
+    Stability(StabilityArgs),
     /// Benchmarks without file output (medians of several runs).
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -95,6 +100,30 @@ pub struct WaveletArgs {
     /// Print JSON (keys wavelet, levels [{level, vertices, l2_error, l2_percent, max_error,
     /// details, mean_detail, max_detail}], reconstruction_max_error, forward_ms, inverse_ms,
     /// base_vertices, base_faces, ...).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `subwave stability`.
+#[derive(Debug, clap::Args)]
+pub struct StabilityArgs {
+    /// The base mesh (any polygon mesh; default: a cube).
+    #[arg(value_name = "MESH")]
+    pub mesh: Option<PathBuf>,
+    /// The input format, if the extension does not tell it.
+    #[arg(short, long, value_name = "F", value_parser = parse_format)]
+    pub format: Option<Format>,
+    /// Subdivision levels.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub levels: u32,
+    /// Noise amplitude, relative to the finest mean edge length.
+    #[arg(long, default_value_t = 0.2)]
+    pub noise: f64,
+    /// Seed of the noise generator.
+    #[arg(long, default_value_t = 9)]
+    pub seed: u64,
+    /// Print JSON (keys levels, noise, runs [{degree, levels [{level, vertices, rms_noise,
+    /// relative, gain}]}]).
     #[arg(long)]
     pub json: bool,
 }
@@ -293,6 +322,7 @@ fn main() -> ExitCode {
         Command::Subdivide(args) => subdivide::run(&args),
         Command::Distance(args) => distance::run(&args),
         Command::Wavelet(args) => wavelet::run(&args),
+        Command::Stability(args) => stability::run(&args),
         Command::Bench(BenchCommand::Subdivide(args)) => bench::subdivide(&args),
     };
     match result {

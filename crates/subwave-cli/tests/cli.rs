@@ -899,3 +899,18 @@ fn subdivide_limit_writes_limit_positions() {
     ]);
     assert!(err.contains("midpoint"), "{err}");
 }
+
+#[test]
+fn stability_report_shows_bertrams_observations() {
+    let text = ok(&["stability", "--levels", "4"]);
+    assert!(text.contains("linear: reduces the noise"), "{text}");
+    assert!(text.contains("quintic: amplifies the noise"), "{text}");
+    let j: Value = serde_json::from_str(&ok(&["stability", "--levels", "4", "--json"])).unwrap();
+    let runs = j["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 3);
+    let rel = |i: usize, k: usize| runs[i]["levels"][k]["relative"].as_f64().unwrap();
+    assert!(rel(0, 3) < 0.1 * rel(0, 0));
+    assert!(rel(2, 3) > 10.0 * rel(2, 0));
+    let err = fails(&["stability", "--noise=-1"]);
+    assert!(err.contains("noise"), "{err}");
+}

@@ -7,6 +7,8 @@
 //! - [`frames`]: the local frames of detail vectors;
 //! - [`report`]: per-level errors, detail statistics, reconstruction error and timings of
 //!   any of these wavelets on a detected semi-regular mesh (`subwave wavelet`);
+//! - [`stability`]: Bertram et al.'s noise experiment (§5.2, Fig. 17) as a report
+//!   (`subwave stability`);
 //! - [`bertram`]: Bertram, Duchaineau, Hamann & Joy's generalized (lifted, biorthogonal)
 //!   B-spline wavelets on Catmull-Clark quad hierarchies — linear, cubic and quintic — in
 //!   floating point and as an exact integer-to-integer transform (§3–4.3 of the paper). With
@@ -24,4 +26,5 @@
 pub mod bertram;
 pub mod frames;
 pub mod report;
+pub mod stability;
 pub mod triangle;
