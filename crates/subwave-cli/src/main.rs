@@ -90,8 +90,8 @@ pub struct WaveletArgs {
     /// The input format, if the extension does not tell it.
     #[arg(short, long, value_name = "F", value_parser = parse_format)]
     pub format: Option<Format>,
-    /// The wavelet: midpoint, butterfly, loop (triangle meshes); linear, cubic, quintic and
-    /// their -int integer versions (quad meshes).
+    /// The wavelet: midpoint, butterfly (and -lifted), loop, midpoint-int, butterfly-int
+    /// (triangle meshes); linear, cubic, quintic and their -int integer versions (quad meshes).
     #[arg(long, value_enum)]
     pub wavelet: wavelet::WaveletArg,
     /// Coordinates of the detail vectors (local frames: triangle wavelets only).

@@ -25,6 +25,10 @@ pub enum WaveletArg {
     ButterflyLifted,
     /// Loop wavelet of PGC (triangles).
     Loop,
+    /// Integer lifted midpoint wavelet (triangles, 20-bit quantized positions).
+    MidpointInt,
+    /// Integer lifted butterfly wavelet (triangles, 20-bit quantized positions).
+    ButterflyInt,
     /// Bertram linear B-spline wavelet (quads).
     Linear,
     /// Bertram cubic B-spline wavelet (quads).
@@ -47,6 +51,8 @@ impl From<WaveletArg> for WaveletKind {
             WaveletArg::Butterfly => WaveletKind::Butterfly,
             WaveletArg::ButterflyLifted => WaveletKind::ButterflyLifted,
             WaveletArg::Loop => WaveletKind::Loop,
+            WaveletArg::MidpointInt => WaveletKind::MidpointInt,
+            WaveletArg::ButterflyInt => WaveletKind::ButterflyInt,
             WaveletArg::Linear => WaveletKind::Linear,
             WaveletArg::Cubic => WaveletKind::Cubic,
             WaveletArg::Quintic => WaveletKind::Quintic,

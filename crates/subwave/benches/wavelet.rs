@@ -13,6 +13,7 @@ use subwave::subdivision::refine::Split;
 use subwave::subdivision::{subdivide, Scheme, SubdivideOptions};
 use subwave::wavelet::bertram::{quad_hierarchy, BSplineWavelet, Degree};
 use subwave::wavelet::triangle::TriangleWavelet;
+use subwave::wavelet::triangle_int::IntTriangleWavelet;
 
 const LEVELS: u32 = 6;
 
@@ -75,6 +76,38 @@ fn triangles(c: &mut Criterion) {
             b.iter_batched_ref(
                 || flat.clone(),
                 |data| w.reconstruct_in_place(data).unwrap(),
+                BatchSize::LargeInput,
+            )
+        });
+    }
+    // Integer lifted wavelets (lossless mode), on the positions scaled to 2^20.
+    let ints: Vec<[i64; 3]> = h
+        .positions
+        .iter()
+        .map(|p| (*p * (1 << 20) as f64).round().to_array().map(|x| x as i64))
+        .collect();
+    for (name, scheme) in [
+        ("midpoint-int", Scheme::Midpoint),
+        ("butterfly-int", Scheme::Butterfly),
+    ] {
+        let opts = SubdivideOptions {
+            scheme,
+            ..Default::default()
+        };
+        let w = IntTriangleWavelet::from_scheme(&h, &opts, true).unwrap();
+        g.bench_function(BenchmarkId::new("forward-in-place", name), |b| {
+            b.iter_batched_ref(
+                || ints.clone(),
+                |data| w.forward(data).unwrap(),
+                BatchSize::LargeInput,
+            )
+        });
+        let mut coeffs = ints.clone();
+        w.forward(&mut coeffs).unwrap();
+        g.bench_function(BenchmarkId::new("inverse-in-place", name), |b| {
+            b.iter_batched_ref(
+                || coeffs.clone(),
+                |data| w.inverse(data).unwrap(),
                 BatchSize::LargeInput,
             )
         });

@@ -4,6 +4,8 @@
 //! - [`triangle`]: triangle hierarchies, Maret 2003 §4.2.3 (computation of details coefficients)
 //!   and §4.4.3 (details in local frames): midpoint lifted or not, any interpolating scheme's
 //!   prediction (butterfly), Loop as in Khodakovsky–Schröder–Sweldens PGC;
+//! - [`triangle_int`]: integer-to-integer lifted midpoint and butterfly wavelets (lossless
+//!   mode of the codec);
 //! - [`frames`]: the local frames of detail vectors;
 //! - [`report`]: per-level errors, detail statistics, reconstruction error and timings of
 //!   any of these wavelets on a detected semi-regular mesh (`subwave wavelet`);
@@ -28,3 +30,4 @@ pub mod frames;
 pub mod report;
 pub mod stability;
 pub mod triangle;
+pub mod triangle_int;

@@ -15,7 +15,8 @@
 //!   maximum (model units; `l2_percent` is the RMS in percent of the bounding-box diagonal,
 //!   Table 5's unit). Comparing vertex by vertex (not surface to surface) is what the transform
 //!   controls and needs no distance query.
-//! - **Integer transforms** (§4.3 of Bertram et al.): positions are first quantized to
+//! - **Integer transforms** (§4.3 of Bertram et al.; the lifted midpoint and butterfly of
+//!   [`super::triangle_int`]): positions are first quantized to
 //!   integers, `q = round((p − min) · s)` with `s = (2^20 − 1) / (largest bounding-box side)`
 //!   ([`QUANT_BITS`]), so the bounding box fits `[0, 2^20)`. The transform, the zero-detail
 //!   synthesis and the reconstruction run on these integers (`i64`), and the errors are against
@@ -35,6 +36,7 @@ use serde::Serialize;
 
 use super::bertram::{BSplineWavelet, Degree};
 use super::triangle::{DetailFrame, TriangleWavelet};
+use super::triangle_int::IntTriangleWavelet;
 use crate::hierarchy::Hierarchy;
 use crate::mesh::Mesh;
 use crate::subdivision::refine::Split;
@@ -57,6 +59,10 @@ pub enum WaveletKind {
     ButterflyLifted,
     /// Loop wavelet of PGC (analysis by a sparse solve), triangles.
     Loop,
+    /// Lifted midpoint wavelet, integer-to-integer (triangles, [`super::triangle_int`]).
+    MidpointInt,
+    /// Lifted butterfly wavelet, integer-to-integer (triangles).
+    ButterflyInt,
     /// Bertram linear B-spline wavelet, quads (float).
     Linear,
     /// Bertram cubic B-spline wavelet, quads (float).
@@ -73,12 +79,14 @@ pub enum WaveletKind {
 
 impl WaveletKind {
     /// Every wavelet, triangle ones first.
-    pub const ALL: [WaveletKind; 11] = [
+    pub const ALL: [WaveletKind; 13] = [
         WaveletKind::Midpoint,
         WaveletKind::MidpointLifted,
         WaveletKind::Butterfly,
         WaveletKind::ButterflyLifted,
         WaveletKind::Loop,
+        WaveletKind::MidpointInt,
+        WaveletKind::ButterflyInt,
         WaveletKind::Linear,
         WaveletKind::Cubic,
         WaveletKind::Quintic,
@@ -95,6 +103,8 @@ impl WaveletKind {
             WaveletKind::Butterfly => "butterfly",
             WaveletKind::ButterflyLifted => "butterfly-lifted",
             WaveletKind::Loop => "loop",
+            WaveletKind::MidpointInt => "midpoint-int",
+            WaveletKind::ButterflyInt => "butterfly-int",
             WaveletKind::Linear => "linear",
             WaveletKind::Cubic => "cubic",
             WaveletKind::Quintic => "quintic",
@@ -116,7 +126,9 @@ impl WaveletKind {
             | WaveletKind::MidpointLifted
             | WaveletKind::Butterfly
             | WaveletKind::ButterflyLifted
-            | WaveletKind::Loop => Split::Triangles,
+            | WaveletKind::Loop
+            | WaveletKind::MidpointInt
+            | WaveletKind::ButterflyInt => Split::Triangles,
             _ => Split::Polygons,
         }
     }
@@ -260,7 +272,15 @@ pub fn analyze_report(mesh: &Mesh, kind: WaveletKind, frame: DetailFrame) -> Res
     if h.split != want {
         return Err(mismatch("another kind of hierarchy", h.split));
     }
+    let int_triangle = matches!(kind, WaveletKind::MidpointInt | WaveletKind::ButterflyInt);
+    if int_triangle && frame == DetailFrame::Local {
+        return Err(Error::InvalidArgument(format!(
+            "the integer wavelet {} keeps details in global (integer) coordinates; use --frames global",
+            kind.name()
+        )));
+    }
     let run = match kind.bspline() {
+        None if int_triangle => run_triangle_int(&h, kind)?,
         None => run_triangle(&h, kind, frame)?,
         Some((degree, false)) => run_bspline(&h, degree)?,
         Some((degree, true)) => run_bspline_int(&h, degree)?,
@@ -321,7 +341,8 @@ pub fn analyze_report(mesh: &Mesh, kind: WaveletKind, frame: DetailFrame) -> Res
         vertices: mesh.num_vertices(),
         faces: mesh.num_faces(),
         diagonal,
-        quantization_bits: kind.bspline().filter(|b| b.1).map(|_| QUANT_BITS),
+        quantization_bits: (int_triangle || kind.bspline().is_some_and(|b| b.1))
+            .then_some(QUANT_BITS),
         levels,
         reconstruction_max_error: rec,
         forward_ms: run.forward_ms,
@@ -432,8 +453,46 @@ fn run_bspline(h: &Hierarchy, degree: Degree) -> Result<Run> {
 
 fn run_bspline_int(h: &Hierarchy, degree: Degree) -> Result<Run> {
     let w = BSplineWavelet::new(degree);
-    let l = h.levels();
     let topo = &h.topologies;
+    run_int(
+        h,
+        |j, d| w.analyze_level_int(&topo[j], d),
+        |j, d| w.synthesize_level_int(&topo[j], d),
+    )
+}
+
+fn run_triangle_int(h: &Hierarchy, kind: WaveletKind) -> Result<Run> {
+    let scheme = if kind == WaveletKind::ButterflyInt {
+        Scheme::Butterfly
+    } else {
+        Scheme::Midpoint
+    };
+    let opts = SubdivideOptions {
+        scheme,
+        ..Default::default()
+    };
+    let w = IntTriangleWavelet::from_scheme(h, &opts, true)?;
+    run_int(
+        h,
+        |j, d| {
+            w.forward_level(j, d);
+            Ok(())
+        },
+        |j, d| {
+            w.inverse_level(j, d);
+            Ok(())
+        },
+    )
+}
+
+/// An integer transform given by its level steps, on the positions quantized into
+/// `[0, 2^QUANT_BITS)`.
+fn run_int(
+    h: &Hierarchy,
+    analyze: impl Fn(usize, &mut [[i64; 3]]) -> Result<()>,
+    synthesize: impl Fn(usize, &mut [[i64; 3]]) -> Result<()>,
+) -> Result<Run> {
+    let l = h.levels();
     let sizes: Vec<usize> = (0..=l).map(|j| h.num_vertices(j)).collect();
     // Quantization: the bounding box into [0, 2^QUANT_BITS).
     let first = h.positions.first().copied().unwrap_or(DVec3::ZERO);
@@ -460,7 +519,7 @@ fn run_bspline_int(h: &Hierarchy, degree: Degree) -> Result<Run> {
     let mut data = quant.clone();
     let mut lowpass = vec![Vec::new(); l + 1];
     for j in (0..l).rev() {
-        w.analyze_level_int(&topo[j], &mut data[..sizes[j + 1]])?;
+        analyze(j, &mut data[..sizes[j + 1]])?;
         lowpass[j] = data[..sizes[j]].to_vec();
     }
     let forward_ms = ms(t);
@@ -475,7 +534,7 @@ fn run_bspline_int(h: &Hierarchy, degree: Degree) -> Result<Run> {
         .collect();
     let t = Instant::now();
     for j in 0..l {
-        w.synthesize_level_int(&topo[j], &mut data[..sizes[j + 1]])?;
+        synthesize(j, &mut data[..sizes[j + 1]])?;
     }
     let inverse_ms = ms(t);
     let mut approximations = Vec::with_capacity(l + 1);
@@ -483,7 +542,7 @@ fn run_bspline_int(h: &Hierarchy, degree: Degree) -> Result<Run> {
         let mut a = low.clone();
         a.resize(sizes[l], [0; 3]);
         for k in j..l {
-            w.synthesize_level_int(&topo[k], &mut a[..sizes[k + 1]])?;
+            synthesize(k, &mut a[..sizes[k + 1]])?;
         }
         approximations.push(a.iter().map(to_f).collect());
     }
