@@ -18,6 +18,8 @@ mod info;
 mod print;
 mod stability;
 mod subdivide;
+#[allow(dead_code)] // used by `subwave eval` (in progress)
+mod svg;
 mod wavelet;
 
 use subwave::io::Format;
