@@ -97,6 +97,24 @@ pub struct Topology {
     /// Whether `vertex_faces` / `vertex_edges` are in 1-ring order (see the module docs);
     /// refined levels skip the ordering unless a scheme needs it.
     pub rings_ordered: bool,
+    /// The number of corners of every face when all faces have the same (every refined level
+    /// of a triangle or polygon split), else 0. [`Topology::face_vertices`] and
+    /// [`Topology::face_edges`] then skip `face_offsets` (one memory access less per face).
+    /// Whoever edits the face tables of a built topology must reset it to 0.
+    pub face_arity: u32,
+}
+
+/// The common arity of all faces given by `offsets`, or 0 if they differ (or there are none).
+fn uniform_arity(offsets: &[u32]) -> u32 {
+    let Some(w) = offsets.windows(2).next() else {
+        return 0;
+    };
+    let a = w[1] - w[0];
+    if offsets.windows(2).all(|w| w[1] - w[0] == a) {
+        a
+    } else {
+        0
+    }
 }
 
 impl Topology {
@@ -253,10 +271,12 @@ impl Topology {
             unmatched_edge_tags: Vec::new(),
             inconsistent_edges: Vec::new(),
             rings_ordered: order_rings,
+            face_arity: 0,
         };
         if topo.face_offsets.is_empty() {
             topo.face_offsets.push(0);
         }
+        topo.face_arity = uniform_arity(&topo.face_offsets);
         if order_rings {
             topo.order_rings();
         }
@@ -513,13 +533,25 @@ impl Topology {
     /// Vertices of face `f`.
     #[inline]
     pub fn face_vertices(&self, f: usize) -> &[u32] {
-        &self.face_vertices[self.face_offsets[f] as usize..self.face_offsets[f + 1] as usize]
+        &self.face_vertices[self.face_range(f)]
+    }
+
+    /// The corners of face `f` in `face_vertices` / `face_edges`.
+    #[inline]
+    fn face_range(&self, f: usize) -> std::ops::Range<usize> {
+        let a = self.face_arity as usize;
+        if a != 0 {
+            debug_assert!(f < self.num_faces());
+            f * a..f * a + a
+        } else {
+            self.face_offsets[f] as usize..self.face_offsets[f + 1] as usize
+        }
     }
 
     /// Edges of face `f` (edge `i` joins corner `i` to corner `i + 1`).
     #[inline]
     pub fn face_edges(&self, f: usize) -> &[u32] {
-        &self.face_edges[self.face_offsets[f] as usize..self.face_offsets[f + 1] as usize]
+        &self.face_edges[self.face_range(f)]
     }
 
     /// Faces of edge `e` (one for a boundary edge, two for an interior one, more if
@@ -807,5 +839,33 @@ impl UnionFind {
         self.parent[b as usize] = a;
         self.size[a as usize] += self.size[b as usize];
         true
+    }
+}
+
+#[cfg(test)]
+mod arity_tests {
+    use super::*;
+    use crate::generate;
+
+    /// The uniform-arity shortcut gives the same face corners as the offsets.
+    #[test]
+    fn uniform_arity_shortcut() {
+        for (m, want) in [
+            (generate::icosahedron(), 3),
+            (generate::cube(), 4),
+            (generate::pyramid(), 0),
+        ] {
+            let t = Topology::build(&m);
+            assert_eq!(t.face_arity, want);
+            let mut generic = t.clone();
+            generic.face_arity = 0;
+            for f in 0..t.num_faces() {
+                assert_eq!(t.face_vertices(f), generic.face_vertices(f));
+                assert_eq!(t.face_edges(f), generic.face_edges(f));
+            }
+        }
+        assert_eq!(uniform_arity(&[0]), 0);
+        assert_eq!(uniform_arity(&[0, 3, 6, 10]), 0);
+        assert_eq!(uniform_arity(&[0, 4, 8]), 4);
     }
 }
