@@ -187,6 +187,16 @@ pub enum Error {
     /// group. Fix: remesh to subdivision connectivity, or ask for fewer levels.
     #[error("no subdivision connectivity: {0}")]
     Hierarchy(String),
+    /// A stream (`.swv`, base-mesh chunk, ...) is malformed, corrupt or of an unsupported
+    /// version: the message names the chunk or field. Fix: re-encode the mesh, or fetch the
+    /// stream again if it was damaged in transit.
+    #[error("corrupt or unsupported stream at byte {offset}: {message}")]
+    Decode {
+        /// Byte offset in the stream where the problem was found.
+        offset: usize,
+        /// What is wrong, naming the chunk or field.
+        message: String,
+    },
     /// A parameter is out of its range. The message says which and what is allowed.
     #[error("{0}")]
     InvalidArgument(String),

@@ -7,6 +7,7 @@
 //! - [`mesh`]: the polygon mesh (flat `u32` face tables, `f64` positions, tags, attributes);
 //! - [`topology`]: edges, ordered 1-rings, boundary loops, components and tags, as flat tables;
 //! - [`validate`]: the report behind `subwave info` and the checks behind every algorithm;
+//! - [`codec`]: entropy coding, base-mesh coding, SPIHT and the stream container;
 //! - [`io`]: OBJ, OFF, PLY, STL readers; OBJ, OFF, PLY, GLB writers;
 //! - [`generate`]: meshes the tests and the demo build themselves;
 //! - [`distance`]: Metro-style surface distance (RMS, Hausdorff, PSNR);
@@ -15,6 +16,7 @@
 //!   Bertram et al.'s B-spline wavelets).
 #![warn(missing_docs)]
 
+pub mod codec;
 pub mod distance;
 pub mod error;
 pub mod generate;
