@@ -447,7 +447,7 @@ mod tests {
                     Sym::Raw(v, k)
                 }
                 2 => Sym::Tree(r.next() % 64),
-                3 => Sym::U(if r.next() % 4 == 0 {
+                3 => Sym::U(if r.next().is_multiple_of(4) {
                     r.next()
                 } else {
                     r.next() % 20
@@ -538,7 +538,7 @@ mod tests {
         let mut c = Bit::new();
         let mut r = Lcg(3);
         for _ in 0..100_000 {
-            e.bit(&mut c, r.next() % 100 == 0);
+            e.bit(&mut c, r.next().is_multiple_of(100));
         }
         let n = e.finish().len();
         // Entropy of p = 0.01 is 0.081 bit: 1010 bytes; allow 15% adaptation overhead.
