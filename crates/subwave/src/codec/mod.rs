@@ -3,6 +3,8 @@
 //!
 //! - [`rangecoder`]: the adaptive binary range coder every bitstream of subwave uses, with
 //!   exact prefix semantics (a truncated stream decodes exactly the symbols it fully
-//!   determines).
+//!   determines);
+//! - [`eval`]: rate–distortion curves of progressive streams against the input mesh.
 
+pub mod eval;
 pub mod rangecoder;
