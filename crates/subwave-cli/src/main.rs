@@ -16,6 +16,7 @@ mod demo;
 mod distance;
 mod info;
 mod print;
+mod remesh;
 mod stability;
 mod subdivide;
 #[allow(dead_code)] // used by `subwave eval` (in progress)
@@ -60,6 +61,9 @@ enum Command {
     /// subdivided mesh, low-passed level by level by the linear, cubic and quintic B-spline
     /// wavelets; prints the noise left at each level.
     Stability(StabilityArgs),
+    /// Remesh any mesh to subdivision connectivity (MAPS: QEM base domain, parameterization,
+    /// resampling; shrink-wrapping fallback), writing the semi-regular mesh and its base mesh.
+    Remesh(remesh::RemeshArgs),
     /// Benchmarks without file output (medians of several runs).
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -135,6 +139,8 @@ pub struct StabilityArgs {
 enum BenchCommand {
     /// Plain subdivision: topology, positions, total, cached re-evaluation, peak memory.
     Subdivide(BenchSubdivideArgs),
+    /// Remeshing to subdivision connectivity: total and per-stage times.
+    Remesh(remesh::BenchRemeshArgs),
 }
 
 /// Arguments of `subwave bench subdivide`.
@@ -326,6 +332,8 @@ fn main() -> ExitCode {
         Command::Wavelet(args) => wavelet::run(&args),
         Command::Stability(args) => stability::run(&args),
         Command::Bench(BenchCommand::Subdivide(args)) => bench::subdivide(&args),
+        Command::Remesh(args) => remesh::run(&args),
+        Command::Bench(BenchCommand::Remesh(args)) => remesh::bench(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
