@@ -5,4 +5,7 @@
 //!   exact prefix semantics (a truncated stream decodes exactly the symbols it fully
 //!   determines).
 
+pub mod forest;
+pub mod quantize;
 pub mod rangecoder;
+pub mod spiht;
