@@ -171,8 +171,8 @@ fn triangle_forest(h: &Hierarchy) -> Forest {
         for k in 0..t.num_faces() {
             let fe = t.face_edges(k);
             let ce = |child: usize, i: usize| tc.face_edges(4 * k + child)[i];
-            for i in 0..3 {
-                let e = fe[i] as usize;
+            for (i, &e) in fe.iter().enumerate().take(3) {
+                let e = e as usize;
                 // (v6, v11, v13) of edge i of triangle k, as level-(j+1) edges.
                 let (v6, v11, v13) = match i {
                     0 => (ce(0, 0), ce(1, 2), ce(3, 1)),
@@ -243,8 +243,8 @@ fn quad_forest(h: &Hierarchy) -> Forest {
             let n = fe.len();
             let q = |i: usize| first_child + i; // child quad at corner i
             let mut kids = Vec::with_capacity(n);
-            for i in 0..n {
-                let e = fe[i] as usize;
+            for (i, &e) in fe.iter().enumerate() {
+                let e = e as usize;
                 let s = &mut slots[base_p + e];
                 let interior = tc.face_edges(q(i))[1];
                 if filled[e] == 0 {
