@@ -4,7 +4,17 @@
 //! - [`rangecoder`]: the adaptive binary range coder every bitstream of subwave uses, with
 //!   exact prefix semantics (a truncated stream decodes exactly the symbols it fully
 //!   determines);
-//! - [`eval`]: rate–distortion curves of progressive streams against the input mesh.
+//! - [`eval`]: rate–distortion curves of progressive streams against the input mesh;
+//! - [`forest`]: the edge-offspring forest (MPEG-4 AFX) and the quad vertex/face forest;
+//! - [`quantize`]: coefficient and position quantization (Maret eqs. 4.7-4.12);
+//! - [`spiht`]: the SPIHT coder of the detail coefficients (Maret Algorithm 1);
+//! - [`container`]: the `.swv` stream format (header, chunk index, checksums);
+//! - [`progressive`]: the encode/decode API of progressive and lossless streams.
 
+pub mod container;
 pub mod eval;
+pub mod forest;
+pub mod progressive;
+pub mod quantize;
 pub mod rangecoder;
+pub mod spiht;

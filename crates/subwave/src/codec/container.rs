@@ -1,0 +1,561 @@
+//! The `.swv` stream container: a versioned header, a chunk index with byte offsets and a
+//! CRC-32 per chunk, then the chunks (base mesh, then coefficient data).
+//!
+//! Maret 2003 §4.5.1 (view-dependent AFX streams: per-tree bit planes with their sizes) and
+//! §4.5.3 (the proposed extension: each bit plane of the whole forest contiguous, with its
+//! size). The index gives every chunk's absolute offset and length, so that an HTTP range
+//! request can fetch any chunk, and its checksum, so that a damaged chunk is reported by
+//! name instead of being decoded into garbage.
+//!
+//! # Layout (all integers little-endian)
+//! ```text
+//! magic     "SWAV"                       4 bytes
+//! version   u16                          (VERSION)
+//! hlen      u32                          bytes of the header including the index and its CRC
+//! fields    Header::write                fixed size (HEADER_FIELDS bytes)
+//! nchunks   u32
+//! per chunk kind u8, id u32, offset u64, len u32, crc u32, nmarks u16, marks u32 × nmarks
+//! hcrc      u32                          CRC-32 of every header byte before it
+//! chunks    ...                          at their offsets, in index order
+//! ```
+//! `marks` are, for a per-tree chunk, the byte length of the prefix of the chunk that holds
+//! bit planes `top..=p` (one mark per plane): a client fetches `[offset, offset + mark)`.
+//!
+//! A reader validates every count against the bytes it has before allocating: the number
+//! of chunks against the header length, chunk extents against `u64` overflow, and (in
+//! [`super::progressive`]) the decoded mesh size against the stream size.
+
+use glam::DVec3;
+
+use crate::{Error, Result};
+
+/// The magic bytes.
+pub const MAGIC: [u8; 4] = *b"SWAV";
+/// The format version (bumped on every format change; the golden-bytes test pins it).
+pub const VERSION: u16 = 1;
+/// Bytes of the fixed header fields.
+pub const HEADER_FIELDS: usize = 16 + 8 * 13 + 4 * 4;
+/// Bytes of a chunk index entry without marks.
+const ENTRY: usize = 1 + 4 + 8 + 4 + 4 + 2;
+
+/// What a chunk holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ChunkKind {
+    /// The base mesh.
+    Base,
+    /// One bit plane of the whole forest (embedded layout); `id` is the plane.
+    Plane,
+    /// All bit planes of one tree (trees layout); `id` is the tree.
+    Tree,
+}
+
+impl ChunkKind {
+    fn code(self) -> u8 {
+        match self {
+            ChunkKind::Base => 0,
+            ChunkKind::Plane => 1,
+            ChunkKind::Tree => 2,
+        }
+    }
+
+    fn from_code(c: u8) -> Option<ChunkKind> {
+        match c {
+            0 => Some(ChunkKind::Base),
+            1 => Some(ChunkKind::Plane),
+            2 => Some(ChunkKind::Tree),
+            _ => None,
+        }
+    }
+}
+
+/// One entry of the chunk index.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ChunkEntry {
+    /// What the chunk holds.
+    pub kind: ChunkKind,
+    /// Plane (for [`ChunkKind::Plane`]) or tree (for [`ChunkKind::Tree`]); 0 for the base.
+    pub id: u32,
+    /// Absolute byte offset in the stream.
+    pub offset: u64,
+    /// Length in bytes.
+    pub len: u32,
+    /// CRC-32 (IEEE) of the chunk's bytes.
+    pub crc: u32,
+    /// Per-plane prefix lengths (per-tree chunks), else empty.
+    pub marks: Vec<u32>,
+}
+
+impl ChunkEntry {
+    /// A human name for error messages ("chunk 3 (bit plane 11)").
+    pub fn name(&self, index: usize) -> String {
+        match self.kind {
+            ChunkKind::Base => format!("chunk {index} (base mesh)"),
+            ChunkKind::Plane => format!("chunk {index} (bit plane {})", self.id),
+            ChunkKind::Tree => format!("chunk {index} (tree {})", self.id),
+        }
+    }
+}
+
+/// The fixed header fields (their meaning is defined by [`super::progressive`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Header {
+    /// Wavelet id.
+    pub wavelet: u8,
+    /// Flag bits.
+    pub flags: u8,
+    /// Split: 0 triangles, 1 polygons (quads).
+    pub split: u8,
+    /// Layout: 0 embedded, 1 trees.
+    pub layout: u8,
+    /// Subdivision levels.
+    pub levels: u8,
+    /// Bits `N` of the coefficient quantization (eq. 4.8) or of the lossless grid.
+    pub bits: u8,
+    /// Bits of the base-mesh grid.
+    pub base_bits: u8,
+    /// Reserved (0).
+    pub reserved: u8,
+    /// Top bit plane per component (−1: all zero).
+    pub top: [i8; 3],
+    /// Reserved (0).
+    pub reserved2: [u8; 5],
+    /// Bounding box of the encoded finest positions.
+    pub bbox: [DVec3; 2],
+    /// Coefficient steps per component (eq. 4.8).
+    pub steps: [f64; 3],
+    /// Origin of the position grid (base mesh; lossless positions).
+    pub grid_origin: DVec3,
+    /// Step of the position grid.
+    pub grid_step: f64,
+    /// Base vertices.
+    pub base_vertices: u32,
+    /// Base faces.
+    pub base_faces: u32,
+    /// Base face corners (sum of arities).
+    pub base_corners: u32,
+    /// Trees of the forest.
+    pub num_trees: u32,
+}
+
+/// A parsed container.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Container {
+    /// The header fields.
+    pub header: Header,
+    /// Bytes of the header and index.
+    pub header_len: usize,
+    /// The chunk index, in stream order.
+    pub chunks: Vec<ChunkEntry>,
+}
+
+/// CRC-32 (IEEE 802.3, reflected, polynomial `0xEDB88320`), as zlib's `crc32`.
+pub fn crc32(data: &[u8]) -> u32 {
+    static TABLE: std::sync::OnceLock<[u32; 256]> = std::sync::OnceLock::new();
+    let t = TABLE.get_or_init(|| {
+        let mut t = [0u32; 256];
+        for (i, x) in t.iter_mut().enumerate() {
+            let mut c = i as u32;
+            for _ in 0..8 {
+                c = if c & 1 != 0 {
+                    0xEDB8_8320 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
+            }
+            *x = c;
+        }
+        t
+    });
+    let mut c = !0u32;
+    for &b in data {
+        c = t[((c ^ b as u32) & 0xFF) as usize] ^ (c >> 8);
+    }
+    !c
+}
+
+fn put_f64(out: &mut Vec<u8>, x: f64) {
+    out.extend_from_slice(&x.to_le_bytes());
+}
+
+impl Header {
+    fn write(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&[
+            self.wavelet,
+            self.flags,
+            self.split,
+            self.layout,
+            self.levels,
+            self.bits,
+            self.base_bits,
+            self.reserved,
+        ]);
+        out.extend(self.top.iter().map(|&t| t as u8));
+        out.extend_from_slice(&self.reserved2);
+        for p in self.bbox {
+            for c in 0..3 {
+                put_f64(out, p[c]);
+            }
+        }
+        for s in self.steps {
+            put_f64(out, s);
+        }
+        for c in 0..3 {
+            put_f64(out, self.grid_origin[c]);
+        }
+        put_f64(out, self.grid_step);
+        for v in [
+            self.base_vertices,
+            self.base_faces,
+            self.base_corners,
+            self.num_trees,
+        ] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+
+    fn read(r: &mut Reader) -> Result<Header> {
+        let b = r.bytes(16)?;
+        let mut f = || r.f64();
+        let bbox = [DVec3::new(f()?, f()?, f()?), DVec3::new(f()?, f()?, f()?)];
+        let steps = [f()?, f()?, f()?];
+        let grid_origin = DVec3::new(f()?, f()?, f()?);
+        let grid_step = f()?;
+        let h = Header {
+            wavelet: b[0],
+            flags: b[1],
+            split: b[2],
+            layout: b[3],
+            levels: b[4],
+            bits: b[5],
+            base_bits: b[6],
+            reserved: b[7],
+            top: [b[8] as i8, b[9] as i8, b[10] as i8],
+            reserved2: [b[11], b[12], b[13], b[14], b[15]],
+            bbox,
+            steps,
+            grid_origin,
+            grid_step,
+            base_vertices: r.u32()?,
+            base_faces: r.u32()?,
+            base_corners: r.u32()?,
+            num_trees: r.u32()?,
+        };
+        let finite = h.bbox.iter().all(|p| p.is_finite())
+            && h.steps.iter().all(|s| s.is_finite() && *s > 0.0)
+            && h.grid_origin.is_finite()
+            && h.grid_step.is_finite()
+            && h.grid_step > 0.0;
+        if !finite {
+            return Err(Error::Decode {
+                offset: 10,
+                message: "header: non-finite or non-positive box, step or grid".into(),
+            });
+        }
+        Ok(h)
+    }
+}
+
+/// Writes a container: `header`, then `chunks` (kind, id, bytes, marks) in order.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] if a chunk exceeds 4 GiB or has more than 65,535 marks.
+pub fn write(header: &Header, chunks: &[(ChunkKind, u32, Vec<u8>, Vec<u32>)]) -> Result<Vec<u8>> {
+    let mut head = Vec::new();
+    head.extend_from_slice(&MAGIC);
+    head.extend_from_slice(&VERSION.to_le_bytes());
+    head.extend_from_slice(&[0; 4]); // hlen, patched below
+    header.write(&mut head);
+    head.extend_from_slice(&(chunks.len() as u32).to_le_bytes());
+    let marks: usize = chunks.iter().map(|c| c.3.len()).sum();
+    let hlen = head.len() + chunks.len() * ENTRY + 4 * marks + 4;
+    let mut offset = hlen as u64;
+    for (kind, id, data, marks) in chunks {
+        if data.len() > u32::MAX as usize || marks.len() > u16::MAX as usize {
+            return Err(Error::InvalidArgument(
+                "a chunk is larger than 4 GiB or has too many planes".into(),
+            ));
+        }
+        head.push(kind.code());
+        head.extend_from_slice(&id.to_le_bytes());
+        head.extend_from_slice(&offset.to_le_bytes());
+        head.extend_from_slice(&(data.len() as u32).to_le_bytes());
+        head.extend_from_slice(&crc32(data).to_le_bytes());
+        head.extend_from_slice(&(marks.len() as u16).to_le_bytes());
+        for m in marks {
+            head.extend_from_slice(&m.to_le_bytes());
+        }
+        offset += data.len() as u64;
+    }
+    let hl = (head.len() + 4) as u32;
+    debug_assert_eq!(hl as usize, hlen);
+    head[6..10].copy_from_slice(&hl.to_le_bytes());
+    let c = crc32(&head);
+    head.extend_from_slice(&c.to_le_bytes());
+    for (_, _, data, _) in chunks {
+        head.extend_from_slice(data);
+    }
+    Ok(head)
+}
+
+struct Reader<'a> {
+    data: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn bytes(&mut self, n: usize) -> Result<&'a [u8]> {
+        match self.data.get(self.pos..self.pos.saturating_add(n)) {
+            Some(b) => {
+                self.pos += n;
+                Ok(b)
+            }
+            None => Err(Error::Decode {
+                offset: self.pos,
+                message: format!(
+                    "stream truncated in the header ({} bytes; the header needs more)",
+                    self.data.len()
+                ),
+            }),
+        }
+    }
+    fn u16(&mut self) -> Result<u16> {
+        let b = self.bytes(2)?;
+        Ok(u16::from_le_bytes([b[0], b[1]]))
+    }
+    fn u32(&mut self) -> Result<u32> {
+        let b = self.bytes(4)?;
+        Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    }
+    fn u64(&mut self) -> Result<u64> {
+        let b = self.bytes(8)?;
+        let mut a = [0u8; 8];
+        a.copy_from_slice(b);
+        Ok(u64::from_le_bytes(a))
+    }
+    fn f64(&mut self) -> Result<f64> {
+        Ok(f64::from_bits(self.u64()?))
+    }
+}
+
+/// Parses the header and chunk index of `bytes` (a whole stream or a prefix holding at
+/// least the header), checking magic, version, header CRC and the index's consistency.
+///
+/// # Errors
+/// [`Error::Decode`] naming the field: bad magic, unsupported version, a prefix shorter than
+/// the header, a header CRC mismatch, an index inconsistent with the header length, chunks
+/// overlapping or out of order.
+pub fn read(bytes: &[u8]) -> Result<Container> {
+    let mut r = Reader {
+        data: bytes,
+        pos: 0,
+    };
+    if r.bytes(4)? != MAGIC {
+        return Err(Error::Decode {
+            offset: 0,
+            message: "not a subwave stream (magic is not \"SWAV\")".into(),
+        });
+    }
+    let version = r.u16()?;
+    if version != VERSION {
+        return Err(Error::Decode {
+            offset: 4,
+            message: format!(
+                "stream version {version} is not supported (this build reads version {VERSION})"
+            ),
+        });
+    }
+    let hlen = r.u32()? as usize;
+    if hlen < 10 + HEADER_FIELDS + 8 {
+        return Err(Error::Decode {
+            offset: 6,
+            message: format!("header length {hlen} is too small"),
+        });
+    }
+    if bytes.len() < hlen {
+        return Err(Error::Decode {
+            offset: bytes.len(),
+            message: format!(
+                "stream truncated in the header ({} bytes; the header and chunk index need {hlen})",
+                bytes.len()
+            ),
+        });
+    }
+    let stored = u32::from_le_bytes([
+        bytes[hlen - 4],
+        bytes[hlen - 3],
+        bytes[hlen - 2],
+        bytes[hlen - 1],
+    ]);
+    if crc32(&bytes[..hlen - 4]) != stored {
+        return Err(Error::Decode {
+            offset: 0,
+            message: "header and chunk index fail their checksum".into(),
+        });
+    }
+    let mut r = Reader {
+        data: &bytes[..hlen - 4],
+        pos: 10,
+    };
+    let header = Header::read(&mut r)?;
+    let n = r.u32()? as usize;
+    if n > (hlen - r.pos) / ENTRY {
+        return Err(Error::Decode {
+            offset: r.pos - 4,
+            message: format!("chunk index: {n} chunks do not fit in the header"),
+        });
+    }
+    let mut chunks = Vec::with_capacity(n);
+    let mut expected = hlen as u64;
+    for i in 0..n {
+        let at = r.pos;
+        let kind = r.bytes(1)?[0];
+        let kind = ChunkKind::from_code(kind).ok_or_else(|| Error::Decode {
+            offset: at,
+            message: format!("chunk index entry {i}: unknown chunk kind {kind}"),
+        })?;
+        let id = r.u32()?;
+        let offset = r.u64()?;
+        let len = r.u32()?;
+        let crc = r.u32()?;
+        let nm = r.u16()? as usize;
+        if nm > (r.data.len() - r.pos) / 4 {
+            return Err(Error::Decode {
+                offset: at,
+                message: format!("chunk index entry {i}: {nm} marks do not fit in the header"),
+            });
+        }
+        let mut marks = Vec::with_capacity(nm);
+        for _ in 0..nm {
+            let m = r.u32()?;
+            if m > len || marks.last().is_some_and(|&p| m < p) {
+                return Err(Error::Decode {
+                    offset: at,
+                    message: format!(
+                        "chunk index entry {i}: plane marks are not increasing within the chunk"
+                    ),
+                });
+            }
+            marks.push(m);
+        }
+        if offset != expected {
+            return Err(Error::Decode {
+                offset: at,
+                message: format!(
+                    "chunk index entry {i}: offset {offset}, expected {expected} (chunks are contiguous)"
+                ),
+            });
+        }
+        expected = offset + len as u64;
+        chunks.push(ChunkEntry {
+            kind,
+            id,
+            offset,
+            len,
+            crc,
+            marks,
+        });
+    }
+    if r.pos != r.data.len() {
+        return Err(Error::Decode {
+            offset: r.pos,
+            message: "chunk index: trailing bytes in the header".into(),
+        });
+    }
+    Ok(Container {
+        header,
+        header_len: hlen,
+        chunks,
+    })
+}
+
+impl Container {
+    /// Total stream length the index declares.
+    pub fn total_len(&self) -> u64 {
+        self.chunks
+            .last()
+            .map_or(self.header_len as u64, |c| c.offset + c.len as u64)
+    }
+
+    /// The bytes of chunk `i` present in `bytes` (all of them, a prefix, or none) and whether
+    /// the chunk is complete. A complete chunk is checked against its CRC.
+    ///
+    /// # Errors
+    /// [`Error::Decode`] naming the chunk if it is complete and fails its checksum.
+    pub fn chunk<'a>(&self, bytes: &'a [u8], i: usize) -> Result<(&'a [u8], bool)> {
+        let c = &self.chunks[i];
+        let start = (c.offset.min(bytes.len() as u64)) as usize;
+        let end = ((c.offset + c.len as u64).min(bytes.len() as u64)) as usize;
+        let data = &bytes[start..end];
+        let complete = data.len() == c.len as usize;
+        if complete && crc32(data) != c.crc {
+            return Err(Error::Decode {
+                offset: start,
+                message: format!("{} fails its checksum (corrupt data)", c.name(i)),
+            });
+        }
+        Ok((data, complete))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn header() -> Header {
+        Header {
+            wavelet: 1,
+            flags: 2,
+            split: 0,
+            layout: 0,
+            levels: 3,
+            bits: 12,
+            base_bits: 16,
+            reserved: 0,
+            top: [11, 9, -1],
+            reserved2: [0; 5],
+            bbox: [DVec3::ZERO, DVec3::ONE],
+            steps: [0.5, 0.25, 1.0],
+            grid_origin: DVec3::ZERO,
+            grid_step: 1e-3,
+            base_vertices: 12,
+            base_faces: 20,
+            base_corners: 60,
+            num_trees: 30,
+        }
+    }
+
+    #[test]
+    fn crc32_check_value() {
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+    }
+
+    #[test]
+    fn write_read_round_trip_and_corruption() {
+        let chunks = vec![
+            (ChunkKind::Base, 0, vec![1, 2, 3], vec![]),
+            (ChunkKind::Tree, 5, vec![4, 5, 6, 7], vec![2, 4]),
+        ];
+        let s = write(&header(), &chunks).unwrap();
+        let c = read(&s).unwrap();
+        assert_eq!(c.header, header());
+        assert_eq!(c.chunks.len(), 2);
+        assert_eq!(c.chunks[1].marks, vec![2, 4]);
+        assert_eq!(c.total_len(), s.len() as u64);
+        assert_eq!(c.chunk(&s, 1).unwrap(), (&[4u8, 5, 6, 7][..], true));
+        assert_eq!(
+            c.chunk(&s[..s.len() - 1], 1).unwrap(),
+            (&[4u8, 5, 6][..], false)
+        );
+        let mut bad = s.clone();
+        let n = bad.len();
+        bad[n - 2] ^= 1;
+        let e = c.chunk(&bad, 1).unwrap_err().to_string();
+        assert!(e.contains("chunk 1 (tree 5) fails its checksum"), "{e}");
+        let mut bad = s.clone();
+        bad[20] ^= 1;
+        assert!(read(&bad).unwrap_err().to_string().contains("checksum"));
+        for cut in 0..c.header_len {
+            assert!(read(&s[..cut]).is_err());
+        }
+    }
+}

@@ -1,0 +1,1143 @@
+//! Progressive (and lossless) geometry coding of semi-regular meshes: the encode/decode API
+//! of `.swv` streams.
+//!
+//! Maret 2003 ch. 4 (wavelet subdivision surfaces, §4.4 SPIHT coding, §4.5 MPEG-4 AFX and
+//! its proposed extension) and Bertram et al. (B-spline wavelets on quad hierarchies, and
+//! their integer lifting for lossless coding, §4.3):
+//!
+//! 1. the finest positions of a [`Hierarchy`] are transformed by a wavelet
+//!    ([`Wavelet`]: midpoint / butterfly (lifted or not) / Loop on triangle hierarchies, in
+//!    global or local frames; linear / cubic / quintic B-splines on quad hierarchies) into the
+//!    base positions and one detail vector per odd vertex of each level;
+//! 2. the base positions are quantized on a grid over the bounding box and coded in the
+//!    base-mesh chunk with the base faces;
+//! 3. the details are quantized (eqs. 4.7-4.9, [`super::quantize`]) and coded by SPIHT
+//!    ([`super::spiht`]) over the offspring forest ([`super::forest`]);
+//! 4. the container ([`super::container`]) stores the header, the base chunk and the
+//!    coefficient chunks in one of two [`Layout`]s.
+//!
+//! # Layouts
+//! - [`Layout::Embedded`] (Maret §4.5.3): one chunk per bit plane of the whole forest, each
+//!   an independent range-coder stream (the adaptive contexts carry over from plane to
+//!   plane). **Any byte prefix** that holds the header, the index and the base chunk decodes:
+//!   complete planes exactly, the cut plane up to the first decision that needs a missing
+//!   byte. The decoded mesh is always the **finest** connectivity with the coefficients known
+//!   so far (unknown coefficients are zero, known ones mid-interval, eqs. 4.11-4.12), which is
+//!   the best estimate the bits give: a coarser level would drop the known fine coefficients.
+//! - [`Layout::Trees`] (AFX view-dependent mode, §4.5.1): one chunk per tree (per base edge,
+//!   and per base face for quads) holding all its bit planes, with per-plane prefix lengths
+//!   in the index (a client can range-request `[offset, offset + mark_p)` to get planes
+//!   `top..=p` of a tree). [`DecodeOptions::trees`] selects the trees to decode; the others
+//!   keep zero details. [`TreeDecoder`] adds and removes trees while decoding (§5.1.2). A
+//!   byte prefix of a trees stream decodes the trees (and tree prefixes) it contains.
+//!
+//! # Lossless mode
+//! Positions are quantized on a grid of `2^bits` steps over the longest side of the
+//! bounding box, transformed by an integer-to-integer wavelet (lifted midpoint or butterfly,
+//! [`crate::wavelet::triangle_int`]; Bertram's integer B-spline lifting on quad
+//! hierarchies) and the integer coefficients coded by SPIHT with step 1: the full stream
+//! reproduces the quantized positions bit for bit, and every prefix is a lossy
+//! approximation.
+//!
+//! # Decoder safety
+//! The decoder validates the header and index (checksums, counts) before allocating; the
+//! finest mesh may have at most `1024 × stream bytes + 2^16` faces (a legitimate stream is
+//! never that sparse), at most 12 levels. A complete chunk whose CRC fails is an error naming
+//! the chunk; nothing is decoded from it.
+//!
+//! # Base-mesh chunk
+//! The base-mesh chunk holds the base faces and the grid-quantized base positions, coded by
+//! [`encode_base`]: per corner one adaptive bit "next new vertex" or the index as an
+//! Elias-gamma integer, then per vertex the three coordinate differences to the previous
+//! vertex (adaptive signed integers). It is a small honest coder, to be replaced by the
+//! connectivity/parallelogram base-mesh coder of `codec::basemesh`.
+//!
+//! Position-dependent subdivision masks: the butterfly and Loop tables are built on the
+//! decoded base mesh; they depend on positions only next to tagged corner vertices, which a
+//! stream's base mesh never has (tags are not coded), so encoder and decoder agree.
+
+use glam::DVec3;
+
+use super::container::{self, ChunkKind, Container, Header};
+use super::forest::Forest;
+use super::quantize::{self, ComponentMode, Grid};
+use super::rangecoder::{Bit, Decoder, Encoder, SInt, UInt};
+use super::spiht::{self, Coefficients, Magnitudes, SpihtDecoder, SpihtEncoder, INSIGNIFICANT};
+use crate::hierarchy::Hierarchy;
+use crate::mesh::Mesh;
+use crate::subdivision::refine::Split;
+use crate::subdivision::{Scheme, SubdivideOptions};
+use crate::topology::Topology;
+use crate::wavelet::bertram::{BSplineWavelet, Degree};
+use crate::wavelet::triangle::{DetailFrame, TriangleWavelet};
+use crate::wavelet::triangle_int::IntTriangleWavelet;
+use crate::{Error, Result};
+
+/// Most subdivision levels a stream may have.
+pub const MAX_LEVELS: u32 = 12;
+
+/// The wavelet of a stream.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Wavelet {
+    /// Midpoint (linear prediction), triangle hierarchies.
+    Midpoint,
+    /// Modified butterfly prediction, triangle hierarchies.
+    Butterfly,
+    /// Loop (PGC), triangle hierarchies (not in lossless mode).
+    Loop,
+    /// Bertram's linear B-spline wavelet, quad hierarchies.
+    Linear,
+    /// Bertram's cubic B-spline wavelet, quad hierarchies.
+    Cubic,
+    /// Bertram's quintic B-spline wavelet, quad hierarchies.
+    Quintic,
+}
+
+impl Wavelet {
+    fn id(self) -> u8 {
+        match self {
+            Wavelet::Midpoint => 0,
+            Wavelet::Butterfly => 1,
+            Wavelet::Loop => 2,
+            Wavelet::Linear => 3,
+            Wavelet::Cubic => 4,
+            Wavelet::Quintic => 5,
+        }
+    }
+
+    fn from_id(id: u8) -> Option<Wavelet> {
+        Some(match id {
+            0 => Wavelet::Midpoint,
+            1 => Wavelet::Butterfly,
+            2 => Wavelet::Loop,
+            3 => Wavelet::Linear,
+            4 => Wavelet::Cubic,
+            5 => Wavelet::Quintic,
+            _ => return None,
+        })
+    }
+
+    /// The lower-case name (`midpoint`, `butterfly`, `loop`, `linear`, `cubic`, `quintic`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Wavelet::Midpoint => "midpoint",
+            Wavelet::Butterfly => "butterfly",
+            Wavelet::Loop => "loop",
+            Wavelet::Linear => "linear",
+            Wavelet::Cubic => "cubic",
+            Wavelet::Quintic => "quintic",
+        }
+    }
+
+    /// Whether the wavelet works on quad (Catmull-Clark connectivity) hierarchies.
+    pub fn is_quad(self) -> bool {
+        matches!(self, Wavelet::Linear | Wavelet::Cubic | Wavelet::Quintic)
+    }
+
+    fn degree(self) -> Degree {
+        match self {
+            Wavelet::Cubic => Degree::Cubic,
+            Wavelet::Quintic => Degree::Quintic,
+            _ => Degree::Linear,
+        }
+    }
+}
+
+/// The chunk layout of a stream.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Layout {
+    /// One chunk per bit plane of the whole forest (any prefix decodes).
+    #[default]
+    Embedded,
+    /// One chunk per tree with per-plane marks (view-dependent).
+    Trees,
+}
+
+/// Encoder options.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EncodeOptions {
+    /// The wavelet (must match the hierarchy: triangle or quad).
+    pub wavelet: Wavelet,
+    /// Lifted (update step) midpoint/butterfly; ignored by the other wavelets.
+    pub lifted: bool,
+    /// Detail coordinates (triangle wavelets; quad wavelets are always global).
+    pub frames: DetailFrame,
+    /// Lossy: bit planes `N` of eq. 4.8 (1..=30). Lossless: bits of the position grid
+    /// (1..=24).
+    pub bits: u32,
+    /// Bits of the base-mesh position grid (lossy mode; 4..=30).
+    pub base_bits: u32,
+    /// How the components share quantization steps.
+    pub components: ComponentMode,
+    /// Context-adaptive coding of the SPIHT decisions (else raw bits).
+    pub contexts: bool,
+    /// The chunk layout.
+    pub layout: Layout,
+    /// Lossless (integer) mode.
+    pub lossless: bool,
+}
+
+impl Default for EncodeOptions {
+    fn default() -> Self {
+        EncodeOptions {
+            wavelet: Wavelet::Butterfly,
+            lifted: false,
+            frames: DetailFrame::Local,
+            bits: 16,
+            base_bits: 16,
+            components: ComponentMode::Aligned,
+            contexts: true,
+            layout: Layout::Embedded,
+            lossless: false,
+        }
+    }
+}
+
+impl EncodeOptions {
+    /// The default options for a hierarchy: [`Wavelet::Butterfly`] on triangles,
+    /// [`Wavelet::Cubic`] (global frames) on quads.
+    pub fn for_hierarchy(h: &Hierarchy) -> EncodeOptions {
+        let mut o = EncodeOptions::default();
+        if h.split == Split::Polygons {
+            o.wavelet = Wavelet::Cubic;
+            o.frames = DetailFrame::Global;
+        }
+        o
+    }
+}
+
+/// Decoder options.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct DecodeOptions {
+    /// Decode only this many leading bytes of the stream (a prefix).
+    pub max_bytes: Option<usize>,
+    /// Trees layout: decode only these trees (others keep zero details). Ignored by the
+    /// embedded layout.
+    pub trees: Option<Vec<u32>>,
+}
+
+/// A decoded mesh and what was used.
+#[derive(Clone, Debug)]
+pub struct Decoded {
+    /// The finest level with the coefficients known so far (contract order).
+    pub mesh: Mesh,
+    /// Bytes of the stream used (header, base and the coefficient bytes read).
+    pub bytes_used: usize,
+    /// Bit planes decoded completely (embedded layout; for trees, those of every decoded
+    /// tree).
+    pub planes_complete: u32,
+    /// Bit planes of the stream.
+    pub planes: u32,
+    /// Whether every coefficient bit of the stream was decoded (lossless: the positions are
+    /// exact).
+    pub complete: bool,
+}
+
+/// What a stream holds ([`inspect`]).
+#[derive(Clone, Debug)]
+pub struct StreamInfo {
+    /// Format version.
+    pub version: u16,
+    /// The wavelet.
+    pub wavelet: Wavelet,
+    /// Lifted midpoint/butterfly.
+    pub lifted: bool,
+    /// Detail frames.
+    pub frames: DetailFrame,
+    /// Component quantization mode.
+    pub components: ComponentMode,
+    /// Context-adaptive coding.
+    pub contexts: bool,
+    /// Lossless mode.
+    pub lossless: bool,
+    /// The layout.
+    pub layout: Layout,
+    /// Subdivision levels.
+    pub levels: u32,
+    /// Quantization bits.
+    pub bits: u32,
+    /// Base vertices.
+    pub base_vertices: u32,
+    /// Base faces.
+    pub base_faces: u32,
+    /// Trees.
+    pub trees: u32,
+    /// Bit planes.
+    pub planes: u32,
+    /// Header and index bytes.
+    pub header_bytes: usize,
+    /// Base-mesh chunk bytes.
+    pub base_bytes: usize,
+    /// Total stream bytes.
+    pub total_bytes: u64,
+    /// Bounding box of the encoded positions.
+    pub bbox: [DVec3; 2],
+    /// The chunk index.
+    pub chunks: Vec<container::ChunkEntry>,
+}
+
+const F_LIFTED: u8 = 1;
+const F_LOCAL: u8 = 2;
+const F_ALIGNED: u8 = 4;
+const F_CONTEXTS: u8 = 8;
+const F_LOSSLESS: u8 = 16;
+
+/// A float wavelet transform of a hierarchy.
+enum Transform<'h> {
+    Tri(TriangleWavelet<'h>),
+    Quad(BSplineWavelet, &'h [Topology]),
+}
+
+impl<'h> Transform<'h> {
+    fn new(h: &'h Hierarchy, w: Wavelet, lifted: bool, frame: DetailFrame) -> Result<Self> {
+        let opts = |scheme| SubdivideOptions {
+            scheme,
+            ..Default::default()
+        };
+        Ok(match w {
+            Wavelet::Midpoint => {
+                Transform::Tri(TriangleWavelet::midpoint(h, lifted)?.with_frame(frame))
+            }
+            Wavelet::Butterfly => Transform::Tri(
+                TriangleWavelet::from_scheme(h, &opts(Scheme::Butterfly), lifted)?
+                    .with_frame(frame),
+            ),
+            Wavelet::Loop => Transform::Tri(
+                TriangleWavelet::loop_pgc(h, &SubdivideOptions::default())?.with_frame(frame),
+            ),
+            _ => Transform::Quad(BSplineWavelet::new(w.degree()), &h.topologies[..h.levels()]),
+        })
+    }
+
+    fn forward(&self, data: &mut [DVec3]) -> Result<()> {
+        match self {
+            Transform::Tri(t) => t.decompose_in_place(data),
+            Transform::Quad(w, levels) => w.analyze(levels, data),
+        }
+    }
+
+    fn inverse(&self, data: &mut [DVec3]) -> Result<()> {
+        match self {
+            Transform::Tri(t) => t.reconstruct_in_place(data),
+            Transform::Quad(w, levels) => w.synthesize(levels, data),
+        }
+    }
+}
+
+/// An integer wavelet transform of a hierarchy (lossless mode).
+enum IntTransform<'h> {
+    Tri(IntTriangleWavelet<'h>),
+    Quad(BSplineWavelet, &'h [Topology]),
+}
+
+impl<'h> IntTransform<'h> {
+    fn new(h: &'h Hierarchy, w: Wavelet, lifted: bool) -> Result<Self> {
+        Ok(match w {
+            Wavelet::Midpoint => IntTransform::Tri(IntTriangleWavelet::midpoint(h, lifted)?),
+            Wavelet::Butterfly => IntTransform::Tri(IntTriangleWavelet::from_scheme(
+                h,
+                &SubdivideOptions {
+                    scheme: Scheme::Butterfly,
+                    ..Default::default()
+                },
+                lifted,
+            )?),
+            Wavelet::Loop => {
+                return Err(Error::InvalidArgument(
+                    "lossless mode needs an integer wavelet: midpoint or butterfly (triangles), linear, cubic or quintic (quads); Loop has no finite integer lifting".into(),
+                ))
+            }
+            _ => IntTransform::Quad(
+                BSplineWavelet::new(w.degree()),
+                &h.topologies[..h.levels()],
+            ),
+        })
+    }
+
+    fn forward(&self, data: &mut [[i64; 3]]) -> Result<()> {
+        match self {
+            IntTransform::Tri(t) => t.forward(data),
+            IntTransform::Quad(w, levels) => w.analyze_int(levels, data),
+        }
+    }
+
+    fn inverse(&self, data: &mut [[i64; 3]]) -> Result<()> {
+        match self {
+            IntTransform::Tri(t) => t.inverse(data),
+            IntTransform::Quad(w, levels) => w.synthesize_int(levels, data),
+        }
+    }
+}
+
+fn bbox(p: &[DVec3]) -> [DVec3; 2] {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for x in p {
+        lo = lo.min(*x);
+        hi = hi.max(*x);
+    }
+    if p.is_empty() {
+        [DVec3::ZERO, DVec3::ZERO]
+    } else {
+        [lo, hi]
+    }
+}
+
+/// Encodes hierarchy `h` (its base faces and finest positions) into a `.swv` stream.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] if the wavelet does not match the hierarchy's split (triangle
+/// wavelets on [`Split::Triangles`], B-spline wavelets on [`Split::Polygons`]), Loop in
+/// lossless mode, more than [`MAX_LEVELS`] levels, bits out of range, non-finite positions,
+/// or a mesh beyond [`spiht::MAX_NODES`] coefficients; errors of the wavelet transform.
+pub fn encode(h: &Hierarchy, opts: &EncodeOptions) -> Result<Vec<u8>> {
+    let l = h.levels();
+    if l as u32 > MAX_LEVELS {
+        return Err(Error::InvalidArgument(format!(
+            "{l} levels: streams have at most {MAX_LEVELS}"
+        )));
+    }
+    match (h.split, opts.wavelet.is_quad()) {
+        (Split::Triangles, false) | (Split::Polygons, true) => {}
+        _ => {
+            return Err(Error::InvalidArgument(format!(
+                "the {} wavelet does not fit a {} hierarchy (triangle hierarchies: midpoint, butterfly, loop; quad hierarchies: linear, cubic, quintic)",
+                opts.wavelet.name(),
+                if h.split == Split::Triangles { "triangle" } else { "quad/polygon" }
+            )))
+        }
+    }
+    if let Some(v) = h.positions.iter().position(|p| !p.is_finite()) {
+        return Err(Error::InvalidArgument(format!(
+            "vertex {v} has a non-finite coordinate"
+        )));
+    }
+    let bits_max = if opts.lossless {
+        24
+    } else {
+        quantize::MAX_PLANES
+    };
+    if opts.bits == 0 || opts.bits > bits_max {
+        return Err(Error::InvalidArgument(format!(
+            "bits {} out of range 1..={bits_max}",
+            opts.bits
+        )));
+    }
+    if !(4..=30).contains(&opts.base_bits) {
+        return Err(Error::InvalidArgument(format!(
+            "base bits {} out of range 4..=30",
+            opts.base_bits
+        )));
+    }
+    let frame = if opts.wavelet.is_quad() || opts.lossless {
+        DetailFrame::Global
+    } else {
+        opts.frames
+    };
+    let lifted = opts.lifted && matches!(opts.wavelet, Wavelet::Midpoint | Wavelet::Butterfly);
+    let forest = Forest::new(h)?;
+    if forest.num_nodes > spiht::MAX_NODES {
+        return Err(Error::InvalidArgument(format!(
+            "{} coefficients: streams hold at most {}",
+            forest.num_nodes,
+            spiht::MAX_NODES
+        )));
+    }
+    let v0 = h.num_vertices(0);
+    let bb = bbox(&h.positions);
+    let (grid, base_q, mags, steps) = if opts.lossless {
+        let grid = Grid::new(bb[0], bb[1], opts.bits);
+        let mut data: Vec<[i64; 3]> = h
+            .positions
+            .iter()
+            .map(|&p| grid.quantize(p).map(i64::from))
+            .collect();
+        IntTransform::new(h, opts.wavelet, lifted)?.forward(&mut data)?;
+        let base_q = data[..v0].to_vec();
+        let mut mag = Vec::with_capacity(3 * forest.num_nodes);
+        let mut neg = Vec::with_capacity(3 * forest.num_nodes);
+        for d in &data[v0..] {
+            for &x in d {
+                if x.unsigned_abs() >= 1 << quantize::MAX_PLANES {
+                    return Err(Error::InvalidArgument(
+                        "an integer wavelet coefficient exceeds 2^30; use fewer bits".into(),
+                    ));
+                }
+                mag.push(x.unsigned_abs() as u32);
+                neg.push(x < 0);
+            }
+        }
+        (grid, base_q, Magnitudes::new(&forest, mag, neg), [1.0; 3])
+    } else {
+        let mut flat = h.positions.clone();
+        Transform::new(h, opts.wavelet, lifted, frame)?.forward(&mut flat)?;
+        let bbase = bbox(&flat[..v0]);
+        let lo = bbase[0].min(bb[0]);
+        let hi = bbase[1].max(bb[1]);
+        let grid = Grid::new(lo, hi, opts.base_bits);
+        let base_q: Vec<[i64; 3]> = flat[..v0]
+            .iter()
+            .map(|&p| grid.quantize(p).map(i64::from))
+            .collect();
+        let details = &flat[v0..];
+        let steps = quantize::steps(details, opts.bits, opts.components);
+        let mut mag = Vec::with_capacity(3 * details.len());
+        let mut neg = Vec::with_capacity(3 * details.len());
+        for d in details {
+            for c in 0..3 {
+                let (m, s) = quantize::quantize(d[c], steps[c]);
+                mag.push(m);
+                neg.push(s);
+            }
+        }
+        (grid, base_q, Magnitudes::new(&forest, mag, neg), steps)
+    };
+    let mut chunks = vec![(
+        ChunkKind::Base,
+        0u32,
+        encode_base(&h.base, &base_q),
+        Vec::new(),
+    )];
+    let planes = spiht::num_planes(mags.top);
+    match opts.layout {
+        Layout::Embedded => {
+            let roots: Vec<u32> = (0..forest.num_trees as u32).collect();
+            let mut s = SpihtEncoder::new(&forest, &mags, &roots, opts.contexts);
+            loop {
+                let n = s.plane();
+                let mut enc = Encoder::new();
+                if !s.code_plane(&mut enc) {
+                    break;
+                }
+                chunks.push((ChunkKind::Plane, n as u32, enc.finish(), Vec::new()));
+            }
+        }
+        Layout::Trees => {
+            for t in 0..forest.num_trees as u32 {
+                let mut s = SpihtEncoder::new(&forest, &mags, &[t], opts.contexts);
+                let mut enc = Encoder::new();
+                let mut marks = Vec::with_capacity(planes as usize);
+                while s.code_plane(&mut enc) {
+                    marks.push(enc.size_bound() as u32);
+                }
+                let bytes = enc.finish();
+                let len = bytes.len() as u32;
+                for m in &mut marks {
+                    *m = (*m).min(len);
+                }
+                chunks.push((ChunkKind::Tree, t, bytes, marks));
+            }
+        }
+    }
+    let mut flags = 0;
+    if lifted {
+        flags |= F_LIFTED;
+    }
+    if frame == DetailFrame::Local {
+        flags |= F_LOCAL;
+    }
+    if opts.components == ComponentMode::Aligned {
+        flags |= F_ALIGNED;
+    }
+    if opts.contexts {
+        flags |= F_CONTEXTS;
+    }
+    if opts.lossless {
+        flags |= F_LOSSLESS;
+    }
+    let header = Header {
+        wavelet: opts.wavelet.id(),
+        flags,
+        split: if h.split == Split::Triangles { 0 } else { 1 },
+        layout: match opts.layout {
+            Layout::Embedded => 0,
+            Layout::Trees => 1,
+        },
+        levels: l as u8,
+        bits: opts.bits as u8,
+        base_bits: opts.base_bits as u8,
+        reserved: 0,
+        top: mags.top.map(|t| t as i8),
+        reserved2: [0; 5],
+        bbox: bb,
+        steps,
+        grid_origin: grid.origin,
+        grid_step: grid.step,
+        base_vertices: v0 as u32,
+        base_faces: h.base.num_faces() as u32,
+        base_corners: h.base.face_indices.len() as u32,
+        num_trees: forest.num_trees as u32,
+    };
+    container::write(&header, &chunks)
+}
+
+/// Codes the base faces and integer positions (the base-mesh chunk; see the module
+/// documentation).
+pub fn encode_base(base: &Mesh, q: &[[i64; 3]]) -> Vec<u8> {
+    let mut enc = Encoder::new();
+    let mut arity = UInt::new();
+    let mut new_ctx = Bit::new();
+    let mut index = UInt::new();
+    let polygons = !base.is_triangle_mesh();
+    let mut next = 0u32;
+    for f in base.faces() {
+        if polygons {
+            arity.encode(&mut enc, f.len() as u32 - 3);
+        }
+        for &v in f {
+            let is_new = v == next;
+            enc.bit(&mut new_ctx, is_new);
+            if is_new {
+                next += 1;
+            } else {
+                index.encode(&mut enc, v);
+            }
+        }
+    }
+    let mut coord = [SInt::new(), SInt::new(), SInt::new()];
+    let mut prev = [0i64; 3];
+    for p in q {
+        for c in 0..3 {
+            coord[c].encode(&mut enc, p[c] - prev[c]);
+        }
+        prev = *p;
+    }
+    enc.finish()
+}
+
+/// Decodes a base-mesh chunk of `nv` vertices, `nf` faces and `corners` corners (from the
+/// header, validated by the caller): the faces (as a mesh with zero positions) and the
+/// integer positions.
+///
+/// # Errors
+/// [`Error::Decode`] (at `offset`) if the chunk is too short, a face has fewer than 3 or
+/// more corners than declared, or an index is out of range.
+pub fn decode_base(
+    bytes: &[u8],
+    nv: usize,
+    nf: usize,
+    corners: usize,
+    triangles: bool,
+    offset: usize,
+) -> Result<(Mesh, Vec<[i64; 3]>)> {
+    let err = |m: String| Error::Decode {
+        offset,
+        message: format!("base mesh chunk: {m}"),
+    };
+    let mut dec = Decoder::new(bytes);
+    let mut arity = UInt::new();
+    let mut new_ctx = Bit::new();
+    let mut index = UInt::new();
+    let mut mesh = Mesh::new();
+    mesh.face_offsets = Vec::with_capacity(nf + 1);
+    mesh.face_offsets.push(0);
+    mesh.face_indices = Vec::with_capacity(corners);
+    let mut next = 0u32;
+    for f in 0..nf {
+        let n = if triangles {
+            3
+        } else {
+            arity.decode(&mut dec) as usize + 3
+        };
+        if mesh.face_indices.len() + n > corners {
+            return Err(err(format!(
+                "face {f} exceeds the declared {corners} corners"
+            )));
+        }
+        for _ in 0..n {
+            let v = if dec.bit(&mut new_ctx) {
+                next += 1;
+                next - 1
+            } else {
+                index.decode(&mut dec)
+            };
+            if v as usize >= nv {
+                return Err(err(format!(
+                    "face {f} references vertex {v}, the base has {nv}"
+                )));
+            }
+            mesh.face_indices.push(v);
+        }
+        mesh.face_offsets.push(mesh.face_indices.len() as u32);
+        if dec.truncated() {
+            return Err(err("truncated (corrupt)".into()));
+        }
+    }
+    if mesh.face_indices.len() != corners {
+        return Err(err(format!(
+            "{} corners decoded, {corners} declared",
+            mesh.face_indices.len()
+        )));
+    }
+    let mut coord = [SInt::new(), SInt::new(), SInt::new()];
+    let mut q = Vec::with_capacity(nv);
+    let mut prev = [0i64; 3];
+    for _ in 0..nv {
+        for c in 0..3 {
+            prev[c] = prev[c].saturating_add(coord[c].decode(&mut dec));
+        }
+        q.push(prev);
+    }
+    if dec.truncated() {
+        return Err(err("truncated (corrupt)".into()));
+    }
+    mesh.positions = vec![DVec3::ZERO; nv];
+    Ok((mesh, q))
+}
+
+/// A parsed and validated stream, ready to decode coefficients.
+struct Parsed {
+    c: Container,
+    wavelet: Wavelet,
+    split: Split,
+    layout: Layout,
+    flags: u8,
+    top: [i32; 3],
+}
+
+fn derr(offset: usize, message: impl Into<String>) -> Error {
+    Error::Decode {
+        offset,
+        message: message.into(),
+    }
+}
+
+fn parse(bytes: &[u8]) -> Result<Parsed> {
+    let c = container::read(bytes)?;
+    let h = &c.header;
+    let wavelet = Wavelet::from_id(h.wavelet)
+        .ok_or_else(|| derr(10, format!("unknown wavelet {}", h.wavelet)))?;
+    let split = match h.split {
+        0 => Split::Triangles,
+        1 => Split::Polygons,
+        s => return Err(derr(12, format!("unknown split {s}"))),
+    };
+    if wavelet.is_quad() != (split == Split::Polygons) {
+        return Err(derr(10, "wavelet and split do not match"));
+    }
+    let layout = match h.layout {
+        0 => Layout::Embedded,
+        1 => Layout::Trees,
+        x => return Err(derr(13, format!("unknown layout {x}"))),
+    };
+    if h.levels as u32 > MAX_LEVELS {
+        return Err(derr(
+            14,
+            format!("{} levels (at most {MAX_LEVELS})", h.levels),
+        ));
+    }
+    if h.flags & !(F_LIFTED | F_LOCAL | F_ALIGNED | F_CONTEXTS | F_LOSSLESS) != 0 {
+        return Err(derr(11, format!("unknown flags {:#x}", h.flags)));
+    }
+    let top = h.top.map(i32::from);
+    if top
+        .iter()
+        .any(|&t| !(-1..quantize::MAX_PLANES as i32).contains(&t))
+    {
+        return Err(derr(18, "top bit planes out of range"));
+    }
+    // Sizes against the stream size, before allocating anything.
+    let budget = 1024u64 * bytes.len() as u64 + (1 << 16);
+    let fine_faces = (h.base_corners as u64).saturating_mul(4u64.saturating_pow(h.levels as u32));
+    if h.base_vertices as u64 > budget || h.base_corners as u64 > budget || fine_faces > budget {
+        return Err(derr(
+            10,
+            format!(
+                "declared sizes ({} base vertices, {} corners, {} levels) are out of proportion to the {} stream bytes",
+                h.base_vertices,
+                h.base_corners,
+                h.levels,
+                bytes.len()
+            ),
+        ));
+    }
+    let tri = split == Split::Triangles;
+    if (tri && h.base_corners as u64 != 3 * h.base_faces as u64)
+        || (h.base_corners as u64) < 3 * h.base_faces as u64
+    {
+        return Err(derr(10, "base corners do not match the base faces"));
+    }
+    match c.chunks.first() {
+        Some(e) if e.kind == ChunkKind::Base => {}
+        _ => return Err(derr(c.header_len, "the first chunk is not the base mesh")),
+    }
+    Ok(Parsed {
+        wavelet,
+        split,
+        layout,
+        flags: h.flags,
+        top,
+        c,
+    })
+}
+
+/// Summarises a stream (header, index, sizes) without decoding coefficients.
+///
+/// # Errors
+/// As [`decode`] for the header and index.
+pub fn inspect(bytes: &[u8]) -> Result<StreamInfo> {
+    let p = parse(bytes)?;
+    let h = &p.c.header;
+    Ok(StreamInfo {
+        version: container::VERSION,
+        wavelet: p.wavelet,
+        lifted: p.flags & F_LIFTED != 0,
+        frames: if p.flags & F_LOCAL != 0 {
+            DetailFrame::Local
+        } else {
+            DetailFrame::Global
+        },
+        components: if p.flags & F_ALIGNED != 0 {
+            ComponentMode::Aligned
+        } else {
+            ComponentMode::Independent
+        },
+        contexts: p.flags & F_CONTEXTS != 0,
+        lossless: p.flags & F_LOSSLESS != 0,
+        layout: p.layout,
+        levels: h.levels as u32,
+        bits: h.bits as u32,
+        base_vertices: h.base_vertices,
+        base_faces: h.base_faces,
+        trees: h.num_trees,
+        planes: spiht::num_planes(p.top),
+        header_bytes: p.c.header_len,
+        base_bytes: p.c.chunks[0].len as usize,
+        total_bytes: p.c.total_len(),
+        bbox: h.bbox,
+        chunks: p.c.chunks.clone(),
+    })
+}
+
+/// The decoded base mesh, hierarchy and forest of a stream.
+struct Setup {
+    hierarchy: Hierarchy,
+    forest: Forest,
+    base_q: Vec<[i64; 3]>,
+}
+
+fn setup(p: &Parsed, bytes: &[u8]) -> Result<Setup> {
+    let h = &p.c.header;
+    let (data, complete) = p.c.chunk(bytes, 0)?;
+    let off = p.c.chunks[0].offset as usize;
+    if !complete {
+        return Err(derr(
+            bytes.len(),
+            format!(
+                "stream truncated in the base mesh chunk (the first {} bytes are needed)",
+                p.c.chunks[0].offset + p.c.chunks[0].len as u64
+            ),
+        ));
+    }
+    let (mut base, base_q) = decode_base(
+        data,
+        h.base_vertices as usize,
+        h.base_faces as usize,
+        h.base_corners as usize,
+        p.split == Split::Triangles,
+        off,
+    )?;
+    let grid = Grid {
+        origin: h.grid_origin,
+        step: h.grid_step,
+    };
+    if p.flags & F_LOSSLESS == 0 {
+        base.positions = base_q.iter().map(|&q| grid.dequantize(q)).collect();
+    }
+    let hierarchy = Hierarchy::new(&base, h.levels as u32, p.split, None)
+        .map_err(|e| derr(off, format!("base mesh chunk: {e}")))?;
+    let forest = Forest::new(&hierarchy)?;
+    if forest.num_trees != h.num_trees as usize {
+        return Err(derr(
+            10,
+            format!(
+                "the header declares {} trees, the base mesh has {}",
+                h.num_trees, forest.num_trees
+            ),
+        ));
+    }
+    if forest.num_nodes > spiht::MAX_NODES {
+        return Err(derr(10, "too many coefficients"));
+    }
+    Ok(Setup {
+        hierarchy,
+        forest,
+        base_q,
+    })
+}
+
+/// Decodes a `.swv` stream, or a prefix of it (`opts.max_bytes`), into the finest mesh with
+/// the coefficients known so far (see the module documentation).
+///
+/// # Errors
+/// [`Error::Decode`]: not a stream, unsupported version, a prefix shorter than the header,
+/// index and base chunk, a chunk failing its checksum (named), declared sizes out of
+/// proportion to the stream, a corrupt base mesh.
+pub fn decode(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
+    let limit = opts.max_bytes.map_or(bytes.len(), |m| m.min(bytes.len()));
+    let bytes = &bytes[..limit];
+    let p = parse(bytes)?;
+    let s = setup(&p, bytes)?;
+    let mut coefs = Coefficients::new(&s.forest);
+    let contexts = p.flags & F_CONTEXTS != 0;
+    let planes = spiht::num_planes(p.top);
+    let mut planes_complete = planes;
+    let mut complete = true;
+    let mut used = p.c.chunks[0].offset as usize + p.c.chunks[0].len as usize;
+    match p.layout {
+        Layout::Embedded => {
+            let roots: Vec<u32> = (0..s.forest.num_trees as u32).collect();
+            let mut d = SpihtDecoder::new(&s.forest, &roots, p.top, contexts);
+            let mut i = 1;
+            while d.plane() >= 0 {
+                let Some(e) = p.c.chunks.get(i) else {
+                    return Err(derr(
+                        p.c.header_len,
+                        format!("plane {} has no chunk", d.plane()),
+                    ));
+                };
+                if e.kind != ChunkKind::Plane || e.id as i32 != d.plane() {
+                    return Err(derr(
+                        p.c.header_len,
+                        format!("{} is not bit plane {}", e.name(i), d.plane()),
+                    ));
+                }
+                let (data, whole) = p.c.chunk(bytes, i)?;
+                used = e.offset as usize + data.len();
+                let mut dec = Decoder::new(data);
+                if !d.decode_plane(&mut dec, &mut coefs) || !whole {
+                    break;
+                }
+                i += 1;
+            }
+            if d.plane() >= 0 {
+                planes_complete = (planes as i32 - 1 - d.plane()).max(0) as u32;
+                complete = false;
+            }
+        }
+        Layout::Trees => {
+            let wanted = opts.trees.as_ref().map(|t| {
+                let mut w = vec![false; s.forest.num_trees];
+                for &x in t {
+                    if let Some(b) = w.get_mut(x as usize) {
+                        *b = true;
+                    }
+                }
+                w
+            });
+            let mut seen = vec![false; s.forest.num_trees];
+            for (i, e) in p.c.chunks.iter().enumerate().skip(1) {
+                if e.kind != ChunkKind::Tree || e.id as usize >= s.forest.num_trees {
+                    return Err(derr(
+                        p.c.header_len,
+                        format!("{} is not a tree chunk of this forest", e.name(i)),
+                    ));
+                }
+                let t = e.id as usize;
+                if std::mem::replace(&mut seen[t], true) {
+                    return Err(derr(
+                        p.c.header_len,
+                        format!("{}: tree {t} appears twice", e.name(i)),
+                    ));
+                }
+                if wanted.as_ref().is_some_and(|w| !w[t]) {
+                    complete = false;
+                    continue;
+                }
+                let (data, _) = p.c.chunk(bytes, i)?;
+                if data.is_empty() {
+                    complete = false;
+                    planes_complete = 0;
+                    continue;
+                }
+                used = used.max(e.offset as usize + data.len());
+                let mut d = SpihtDecoder::new(&s.forest, &[t as u32], p.top, contexts);
+                let mut dec = Decoder::new(data);
+                while d.decode_plane(&mut dec, &mut coefs) {}
+                if d.plane() >= 0 {
+                    complete = false;
+                    planes_complete =
+                        planes_complete.min((planes as i32 - 1 - d.plane()).max(0) as u32);
+                }
+            }
+            if seen.iter().any(|&x| !x) {
+                complete = false;
+            }
+        }
+    }
+    let mesh = reconstruct(&p, &s, &coefs)?;
+    Ok(Decoded {
+        mesh,
+        bytes_used: used.min(limit),
+        planes_complete,
+        planes,
+        complete,
+    })
+}
+
+fn reconstruct(p: &Parsed, s: &Setup, coefs: &Coefficients) -> Result<Mesh> {
+    let h = &p.c.header;
+    let hier = &s.hierarchy;
+    let v0 = hier.num_vertices(0);
+    let grid = Grid {
+        origin: h.grid_origin,
+        step: h.grid_step,
+    };
+    let lifted = p.flags & F_LIFTED != 0;
+    let positions = if p.flags & F_LOSSLESS != 0 {
+        let mut data = s.base_q.clone();
+        data.reserve(s.forest.num_nodes);
+        for n in 0..s.forest.num_nodes {
+            let mut d = [0i64; 3];
+            for (c, x) in d.iter_mut().enumerate() {
+                let e = 3 * n + c;
+                let w = coefs.width[e];
+                if w != INSIGNIFICANT {
+                    let m = coefs.lo[e] as i64 + ((1i64 << w) >> 1);
+                    *x = if coefs.neg[e] { -m } else { m };
+                }
+            }
+            data.push(d);
+        }
+        IntTransform::new(hier, p.wavelet, lifted)?
+            .inverse(&mut data)
+            .map_err(|e| derr(0, format!("integer synthesis: {e}")))?;
+        data.iter().map(|&q| grid.dequantize(q)).collect()
+    } else {
+        let frame = if p.flags & F_LOCAL != 0 {
+            DetailFrame::Local
+        } else {
+            DetailFrame::Global
+        };
+        let mut flat = Vec::with_capacity(v0 + s.forest.num_nodes);
+        flat.extend(s.base_q.iter().map(|&q| grid.dequantize(q)));
+        for n in 0..s.forest.num_nodes {
+            let mut d = DVec3::ZERO;
+            for c in 0..3 {
+                let e = 3 * n + c;
+                let w = coefs.width[e];
+                if w != INSIGNIFICANT {
+                    d[c] = quantize::reconstruct(coefs.lo[e], w as u32, coefs.neg[e], h.steps[c]);
+                }
+            }
+            flat.push(d);
+        }
+        Transform::new(hier, p.wavelet, lifted, frame)?.inverse(&mut flat)?;
+        flat
+    };
+    Ok(hier.level_mesh(hier.levels(), positions))
+}
+
+/// A view-dependent decoder of a trees-layout stream (Maret §4.5.1, §5.1.2): trees are added
+/// (decoded from their chunk bytes, which may be a prefix of the chunk) and removed (their
+/// details reset to zero) at any time, and [`TreeDecoder::mesh`] reconstructs the current
+/// mesh.
+pub struct TreeDecoder {
+    p: Parsed,
+    s: Setup,
+    coefs: Coefficients,
+    tree_of: Vec<u32>,
+    active: Vec<bool>,
+}
+
+impl TreeDecoder {
+    /// Parses the header, index and base mesh of a trees-layout stream (`bytes` must hold at
+    /// least those).
+    ///
+    /// # Errors
+    /// As [`decode`]; [`Error::InvalidArgument`] for an embedded stream.
+    pub fn new(bytes: &[u8]) -> Result<TreeDecoder> {
+        let p = parse(bytes)?;
+        if p.layout != Layout::Trees {
+            return Err(Error::InvalidArgument(
+                "a tree decoder needs a stream encoded with the trees layout".into(),
+            ));
+        }
+        let s = setup(&p, bytes)?;
+        let coefs = Coefficients::new(&s.forest);
+        let tree_of = s.forest.tree_of();
+        let active = vec![false; s.forest.num_trees];
+        Ok(TreeDecoder {
+            p,
+            s,
+            coefs,
+            tree_of,
+            active,
+        })
+    }
+
+    /// Number of trees (base edges, and base faces for quads).
+    pub fn num_trees(&self) -> usize {
+        self.s.forest.num_trees
+    }
+
+    /// The byte range `[offset, offset + len)` of tree `t`'s chunk in the stream, and its
+    /// per-plane prefix lengths (for range requests).
+    pub fn tree_range(&self, t: u32) -> Option<(u64, u32, &[u32])> {
+        self.p
+            .c
+            .chunks
+            .iter()
+            .find(|e| e.kind == ChunkKind::Tree && e.id == t)
+            .map(|e| (e.offset, e.len, &e.marks[..]))
+    }
+
+    /// Decodes tree `t` from `chunk`, its chunk bytes (the whole chunk, checked against its
+    /// CRC, or a prefix of it). Replaces what was decoded of the tree before.
+    ///
+    /// # Errors
+    /// [`Error::Decode`] if `t` is not a tree of the stream or the whole chunk fails its CRC.
+    pub fn add_tree(&mut self, t: u32, chunk: &[u8]) -> Result<()> {
+        let Some((i, e)) = self
+            .p
+            .c
+            .chunks
+            .iter()
+            .enumerate()
+            .find(|(_, e)| e.kind == ChunkKind::Tree && e.id == t)
+        else {
+            return Err(derr(0, format!("tree {t} is not in the stream")));
+        };
+        if chunk.len() > e.len as usize
+            || (chunk.len() == e.len as usize && container::crc32(chunk) != e.crc)
+        {
+            return Err(derr(
+                e.offset as usize,
+                format!("{} fails its checksum (corrupt data)", e.name(i)),
+            ));
+        }
+        self.remove_tree(t);
+        let contexts = self.p.flags & F_CONTEXTS != 0;
+        let mut d = SpihtDecoder::new(&self.s.forest, &[t], self.p.top, contexts);
+        let mut dec = Decoder::new(chunk);
+        while d.decode_plane(&mut dec, &mut self.coefs) {}
+        self.active[t as usize] = true;
+        Ok(())
+    }
+
+    /// Removes tree `t` (its details become zero). No effect for an unknown tree.
+    pub fn remove_tree(&mut self, t: u32) {
+        if !self.active.get(t as usize).copied().unwrap_or(false) {
+            return;
+        }
+        let tree_of = &self.tree_of;
+        self.coefs
+            .clear_nodes((0..tree_of.len()).filter(|&n| tree_of[n] == t));
+        self.active[t as usize] = false;
+    }
+
+    /// The trees currently decoded.
+    pub fn active_trees(&self) -> Vec<u32> {
+        (0..self.active.len() as u32)
+            .filter(|&t| self.active[t as usize])
+            .collect()
+    }
+
+    /// The mesh with the trees decoded so far.
+    ///
+    /// # Errors
+    /// As the wavelet synthesis.
+    pub fn mesh(&self) -> Result<Mesh> {
+        reconstruct(&self.p, &self.s, &self.coefs)
+    }
+}

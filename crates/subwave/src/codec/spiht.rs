@@ -1,0 +1,612 @@
+//! SPIHT (Set Partitioning In Hierarchical Trees) over an offspring [`Forest`].
+//!
+//! Maret 2003 §4.4.2, Algorithm 1 (after Said & Pearlman 1996): three ordered lists, LIC
+//! (insignificant coefficients), LIS (insignificant sets: type A = the descendants `D(c)`,
+//! type B = `L(c) = D(c) − O(c)`) and LSC (significant coefficients); per bit plane `n` a
+//! sorting pass (significance `S_n` of LIC entries, then of LIS sets, splitting significant
+//! sets) and a refinement pass (bit `n` of every coefficient of the LSC *except those that
+//! became significant in this plane's sorting pass*, whose bit is known to be 1).
+//!
+//! The lists hold *entries* `3·node + component`: the three components are coded by the same
+//! passes (the AFX stream of §4.4.2 interleaves them the same way), each with its own top
+//! plane (`top[c]`, the highest plane in which component `c` has a set bit; entries of
+//! component `c` are skipped in the planes above it). With
+//! [`ComponentMode::Independent`](super::quantize::ComponentMode) steps this is AFX's
+//! independent per-component SPIHT; with aligned steps the planes follow the squared error
+//! across components (§4.5.3).
+//!
+//! Type-A entries are only made for nodes with offspring and type-B entries only when
+//! `L(c)` is not empty (line 22 of Algorithm 1), so no bit is spent on empty sets.
+//!
+//! # Entropy coding
+//! Every decision goes through the adaptive binary range coder
+//! ([`super::rangecoder`]). With `contexts = true` (the default of the codec) significance,
+//! sign and refinement bits use adaptive contexts ("context-adaptive arithmetic coding" of
+//! Maret §4.5): significance per component, level of the node, kind of test (LIC
+//! coefficient, offspring of a just-split set, type-A set, type-B set) and whether a
+//! component of the same node was significant in an earlier plane; signs and refinement bits per component
+//! and level. With `contexts = false` every bit is coded raw (probability ½), i.e. the plain
+//! SPIHT bit stream.
+//!
+//! # Prefixes
+//! The decoder stops at the first decision that needs a byte the stream does not have
+//! ([`Decoder::truncated`]); every coefficient then holds what the exact decisions before it
+//! said (its interval `[lo, lo + 2^w)` and sign, or insignificant).
+
+use super::forest::Forest;
+use super::rangecoder::{Bit, Decoder, Encoder};
+
+/// The type-B flag of an LIS entry.
+const TYPE_B: u32 = 1 << 31;
+/// Levels with their own contexts (deeper levels share the last).
+const CTX_LEVELS: usize = 12;
+/// "Not significant" in [`Coefficients::width`].
+pub const INSIGNIFICANT: u8 = u8::MAX;
+
+/// Largest number of forest nodes the coder accepts (entries `3·node + c` and the type-B
+/// flag must fit in `u32`).
+pub const MAX_NODES: usize = (1 << 29) - 1;
+
+/// The adaptive contexts of one SPIHT stream.
+#[derive(Clone, Debug)]
+struct Contexts {
+    on: bool,
+    /// [kind][other component significant][component][level]
+    sig: Vec<Bit>,
+    /// [component][level]
+    sign: Vec<Bit>,
+    /// [component][level]
+    refine: Vec<Bit>,
+}
+
+/// Kinds of significance test.
+#[derive(Clone, Copy)]
+enum Test {
+    Lic = 0,
+    Offspring = 1,
+    SetA = 2,
+    SetB = 3,
+}
+
+impl Contexts {
+    fn new(on: bool) -> Self {
+        Contexts {
+            on,
+            sig: vec![Bit::new(); 4 * 2 * 3 * CTX_LEVELS],
+            sign: vec![Bit::new(); 3 * CTX_LEVELS],
+            refine: vec![Bit::new(); 3 * CTX_LEVELS],
+        }
+    }
+
+    #[inline]
+    fn sig_index(test: Test, other: bool, c: usize, level: u8) -> usize {
+        let l = (level as usize).min(CTX_LEVELS - 1);
+        (((test as usize) * 2 + other as usize) * 3 + c) * CTX_LEVELS + l
+    }
+
+    #[inline]
+    fn cl(c: usize, level: u8) -> usize {
+        c * CTX_LEVELS + (level as usize).min(CTX_LEVELS - 1)
+    }
+}
+
+/// The quantized coefficients an encoder codes: magnitudes and signs per entry
+/// (`3·node + component`), with the maxima over descendant sets.
+#[derive(Clone, Debug)]
+pub struct Magnitudes {
+    mag: Vec<u32>,
+    neg: Vec<bool>,
+    /// max over `D(c)` per entry.
+    dmax: Vec<u32>,
+    /// max over `L(c)` per entry.
+    lmax: Vec<u32>,
+    /// Top plane per component (−1: all zero).
+    pub top: [i32; 3],
+}
+
+impl Magnitudes {
+    /// Magnitudes `mag` and signs `neg` (`neg[i]` true for negative) of entries
+    /// `3·node + c` of `forest`.
+    ///
+    /// # Panics
+    /// If the lengths are not `3 · forest.num_nodes`.
+    pub fn new(forest: &Forest, mag: Vec<u32>, neg: Vec<bool>) -> Magnitudes {
+        assert_eq!(mag.len(), 3 * forest.num_nodes);
+        assert_eq!(neg.len(), mag.len());
+        let mut dmax = vec![0u32; mag.len()];
+        let mut lmax = vec![0u32; mag.len()];
+        for n in (0..forest.num_nodes).rev() {
+            for c in 0..3 {
+                let mut d = 0u32;
+                let mut l = 0u32;
+                for &k in forest.offspring(n) {
+                    let k = 3 * k as usize + c;
+                    d = d.max(mag[k]).max(dmax[k]);
+                    l = l.max(dmax[k]);
+                }
+                dmax[3 * n + c] = d;
+                lmax[3 * n + c] = l;
+            }
+        }
+        let mut top = [-1i32; 3];
+        for (i, &m) in mag.iter().enumerate() {
+            if m > 0 {
+                let t = 31 - m.leading_zeros() as i32;
+                let c = i % 3;
+                top[c] = top[c].max(t);
+            }
+        }
+        Magnitudes {
+            mag,
+            neg,
+            dmax,
+            lmax,
+            top,
+        }
+    }
+}
+
+/// The number of bit planes of a stream with top planes `top` (0 if every coefficient is
+/// zero).
+pub fn num_planes(top: [i32; 3]) -> u32 {
+    (top.iter().copied().max().unwrap_or(-1) + 1).max(0) as u32
+}
+
+/// The shared list state of an encoder or decoder.
+#[derive(Clone, Debug)]
+struct Lists {
+    lic: Vec<u32>,
+    lis: Vec<u32>,
+    lsc: Vec<u32>,
+    /// The plane of the next pass.
+    plane: i32,
+    top: [i32; 3],
+    ctx: Contexts,
+}
+
+impl Lists {
+    fn new(forest: &Forest, roots: &[u32], top: [i32; 3], contexts: bool) -> Lists {
+        let mut lic = Vec::with_capacity(roots.len() * 3);
+        let mut lis = Vec::with_capacity(roots.len() * 3);
+        for &r in roots {
+            for c in 0..3u32 {
+                lic.push(3 * r + c);
+                if !forest.offspring(r as usize).is_empty() {
+                    lis.push(3 * r + c);
+                }
+            }
+        }
+        Lists {
+            lic,
+            lis,
+            lsc: Vec::new(),
+            plane: top.iter().copied().max().unwrap_or(-1),
+            top,
+            ctx: Contexts::new(contexts),
+        }
+    }
+}
+
+/// Whether `L(n)` is not empty (some offspring has offspring).
+#[inline]
+fn has_grandchildren(forest: &Forest, n: usize) -> bool {
+    forest
+        .offspring(n)
+        .first()
+        .is_some_and(|&k| !forest.offspring(k as usize).is_empty())
+}
+
+/// SPIHT encoder state over one set of roots (the whole forest, or one tree).
+#[derive(Clone, Debug)]
+pub struct SpihtEncoder<'a> {
+    forest: &'a Forest,
+    m: &'a Magnitudes,
+    lists: Lists,
+}
+
+impl<'a> SpihtEncoder<'a> {
+    /// An encoder of the trees rooted at `roots` (node ids `< forest.num_trees`).
+    pub fn new(forest: &'a Forest, m: &'a Magnitudes, roots: &[u32], contexts: bool) -> Self {
+        SpihtEncoder {
+            forest,
+            m,
+            lists: Lists::new(forest, roots, m.top, contexts),
+        }
+    }
+
+    /// The plane the next [`SpihtEncoder::code_plane`] codes (−1 when done).
+    pub fn plane(&self) -> i32 {
+        self.lists.plane
+    }
+
+    #[inline]
+    fn put_sig(&mut self, enc: &mut Encoder, test: Test, e: usize, bit: bool) {
+        let ctx = &mut self.lists.ctx;
+        if ctx.on {
+            let level = self.forest.level[e / 3];
+            // Some component of the node significant in an earlier plane.
+            let b = e - e % 3;
+            let thr2 = 2u64 << self.lists.plane;
+            let other = self.m.mag[b..b + 3].iter().any(|&x| x as u64 >= thr2);
+            enc.bit(
+                &mut ctx.sig[Contexts::sig_index(test, other, e % 3, level)],
+                bit,
+            );
+        } else {
+            enc.raw(bit as u32, 1);
+        }
+    }
+
+    #[inline]
+    fn put_sign(&mut self, enc: &mut Encoder, e: usize) {
+        let bit = self.m.neg[e];
+        let ctx = &mut self.lists.ctx;
+        if ctx.on {
+            let level = self.forest.level[e / 3];
+            enc.bit(&mut ctx.sign[Contexts::cl(e % 3, level)], bit);
+        } else {
+            enc.raw(bit as u32, 1);
+        }
+    }
+
+    /// Codes the sorting and refinement passes of the current plane; returns `false` (and
+    /// codes nothing) when every plane is done.
+    pub fn code_plane(&mut self, enc: &mut Encoder) -> bool {
+        let n = self.lists.plane;
+        if n < 0 {
+            return false;
+        }
+        let thr = 1u32 << n;
+        let top = self.lists.top;
+        let lsc_before = self.lists.lsc.len();
+        // LIC.
+        let lic = std::mem::take(&mut self.lists.lic);
+        let mut keep = Vec::with_capacity(lic.len());
+        for &e in &lic {
+            let e = e as usize;
+            if top[e % 3] < n {
+                keep.push(e as u32);
+                continue;
+            }
+            let s = self.m.mag[e] >= thr;
+            self.put_sig(enc, Test::Lic, e, s);
+            if s {
+                self.put_sign(enc, e);
+                self.lists.lsc.push(e as u32);
+            } else {
+                keep.push(e as u32);
+            }
+        }
+        self.lists.lic = keep;
+        // LIS (entries appended during the pass are processed in the same pass).
+        let mut i = 0;
+        let mut out: Vec<u32> = Vec::with_capacity(self.lists.lis.len());
+        while i < self.lists.lis.len() {
+            let entry = self.lists.lis[i];
+            i += 1;
+            let e = (entry & !TYPE_B) as usize;
+            let (node, c) = (e / 3, e % 3);
+            if top[c] < n {
+                out.push(entry);
+                continue;
+            }
+            if entry & TYPE_B == 0 {
+                let s = self.m.dmax[e] >= thr;
+                self.put_sig(enc, Test::SetA, e, s);
+                if s {
+                    for &k in self.forest.offspring(node) {
+                        let ke = 3 * k as usize + c;
+                        let sk = self.m.mag[ke] >= thr;
+                        self.put_sig(enc, Test::Offspring, ke, sk);
+                        if sk {
+                            self.put_sign(enc, ke);
+                            self.lists.lsc.push(ke as u32);
+                        } else {
+                            self.lists.lic.push(ke as u32);
+                        }
+                    }
+                    if has_grandchildren(self.forest, node) {
+                        self.lists.lis.push(e as u32 | TYPE_B);
+                    }
+                } else {
+                    out.push(entry);
+                }
+            } else {
+                let s = self.m.lmax[e] >= thr;
+                self.put_sig(enc, Test::SetB, e, s);
+                if s {
+                    for &k in self.forest.offspring(node) {
+                        self.lists.lis.push(3 * k + c as u32);
+                    }
+                } else {
+                    out.push(entry);
+                }
+            }
+        }
+        self.lists.lis = out;
+        // Refinement.
+        let ctx = &mut self.lists.ctx;
+        for &e in &self.lists.lsc[..lsc_before] {
+            let e = e as usize;
+            let bit = (self.m.mag[e] >> n) & 1 != 0;
+            if ctx.on {
+                let level = self.forest.level[e / 3];
+                enc.bit(&mut ctx.refine[Contexts::cl(e % 3, level)], bit);
+            } else {
+                enc.raw(bit as u32, 1);
+            }
+        }
+        self.lists.plane -= 1;
+        true
+    }
+}
+
+/// The decoder's knowledge of every coefficient entry: magnitude interval `[lo, lo + 2^w)`
+/// (`w = INSIGNIFICANT` while not significant) and sign.
+#[derive(Clone, Debug)]
+pub struct Coefficients {
+    /// Lower end of the magnitude interval.
+    pub lo: Vec<u32>,
+    /// log2 of the interval width, or [`INSIGNIFICANT`].
+    pub width: Vec<u8>,
+    /// Sign (true: negative).
+    pub neg: Vec<bool>,
+}
+
+impl Coefficients {
+    /// All entries of `forest` insignificant.
+    pub fn new(forest: &Forest) -> Self {
+        let n = 3 * forest.num_nodes;
+        Coefficients {
+            lo: vec![0; n],
+            width: vec![INSIGNIFICANT; n],
+            neg: vec![false; n],
+        }
+    }
+
+    /// Resets the entries of the nodes in `nodes` to insignificant (removing a tree).
+    pub fn clear_nodes(&mut self, nodes: impl Iterator<Item = usize>) {
+        for n in nodes {
+            for e in 3 * n..3 * n + 3 {
+                self.lo[e] = 0;
+                self.width[e] = INSIGNIFICANT;
+                self.neg[e] = false;
+            }
+        }
+    }
+}
+
+/// SPIHT decoder state over one set of roots.
+#[derive(Clone, Debug)]
+pub struct SpihtDecoder<'a> {
+    forest: &'a Forest,
+    lists: Lists,
+}
+
+macro_rules! get {
+    ($dec:expr, $e:expr) => {{
+        let b = $e;
+        if $dec.truncated() {
+            return false;
+        }
+        b
+    }};
+}
+
+impl<'a> SpihtDecoder<'a> {
+    /// A decoder of the trees rooted at `roots`, with the stream's top planes.
+    pub fn new(forest: &'a Forest, roots: &[u32], top: [i32; 3], contexts: bool) -> Self {
+        SpihtDecoder {
+            forest,
+            lists: Lists::new(forest, roots, top, contexts),
+        }
+    }
+
+    /// The plane the next [`SpihtDecoder::decode_plane`] decodes (−1 when done).
+    pub fn plane(&self) -> i32 {
+        self.lists.plane
+    }
+
+    /// Decodes the current plane into `out`. Returns `false` if the stream ended before the
+    /// plane was complete (the state is then that of the exact decisions decoded; decoding
+    /// must not continue) or if every plane is done.
+    pub fn decode_plane(&mut self, dec: &mut Decoder, out: &mut Coefficients) -> bool {
+        let n = self.lists.plane;
+        if n < 0 {
+            return false;
+        }
+        let thr = 1u32 << n;
+        let top = self.lists.top;
+        let forest = self.forest;
+        let lsc_before = self.lists.lsc.len();
+        let l = &mut self.lists;
+        let on = l.ctx.on;
+        // Some component of the node significant in an earlier plane (width > n; entries
+        // found significant in this plane have width n, refinement comes after sorting).
+        let other = |out: &Coefficients, e: usize| {
+            let b = e - e % 3;
+            out.width[b..b + 3]
+                .iter()
+                .any(|&w| w != INSIGNIFICANT && w as i32 > n)
+        };
+        macro_rules! sig {
+            ($test:expr, $e:expr) => {{
+                let e: usize = $e;
+                if on {
+                    let idx = Contexts::sig_index($test, other(out, e), e % 3, forest.level[e / 3]);
+                    get!(dec, dec.bit(&mut l.ctx.sig[idx]))
+                } else {
+                    get!(dec, dec.raw(1) != 0)
+                }
+            }};
+        }
+        macro_rules! sign {
+            ($e:expr) => {{
+                let e: usize = $e;
+                if on {
+                    let idx = Contexts::cl(e % 3, forest.level[e / 3]);
+                    get!(dec, dec.bit(&mut l.ctx.sign[idx]))
+                } else {
+                    get!(dec, dec.raw(1) != 0)
+                }
+            }};
+        }
+        // LIC.
+        let mut idx = 0;
+        let mut kept = 0;
+        while idx < l.lic.len() {
+            let e = l.lic[idx] as usize;
+            idx += 1;
+            if top[e % 3] >= n {
+                let s = sig!(Test::Lic, e);
+                if s {
+                    let neg = sign!(e);
+                    out.lo[e] = thr;
+                    out.width[e] = n as u8;
+                    out.neg[e] = neg;
+                    l.lsc.push(e as u32);
+                    continue;
+                }
+            }
+            l.lic[kept] = e as u32;
+            kept += 1;
+        }
+        l.lic.truncate(kept);
+        // LIS.
+        let mut i = 0;
+        let mut kept = 0;
+        while i < l.lis.len() {
+            let entry = l.lis[i];
+            i += 1;
+            let e = (entry & !TYPE_B) as usize;
+            let (node, c) = (e / 3, e % 3);
+            let mut keep = true;
+            if top[c] >= n {
+                if entry & TYPE_B == 0 {
+                    if sig!(Test::SetA, e) {
+                        for &k in forest.offspring(node) {
+                            let ke = 3 * k as usize + c;
+                            if sig!(Test::Offspring, ke) {
+                                let neg = sign!(ke);
+                                out.lo[ke] = thr;
+                                out.width[ke] = n as u8;
+                                out.neg[ke] = neg;
+                                l.lsc.push(ke as u32);
+                            } else {
+                                l.lic.push(ke as u32);
+                            }
+                        }
+                        if has_grandchildren(forest, node) {
+                            l.lis.push(e as u32 | TYPE_B);
+                        }
+                        keep = false;
+                    }
+                } else if sig!(Test::SetB, e) {
+                    for &k in forest.offspring(node) {
+                        l.lis.push(3 * k + c as u32);
+                    }
+                    keep = false;
+                }
+            }
+            if keep {
+                l.lis[kept] = entry;
+                kept += 1;
+            }
+        }
+        l.lis.drain(kept..i);
+        // Refinement.
+        for &e in &l.lsc[..lsc_before] {
+            let e = e as usize;
+            let bit = if on {
+                let idx = Contexts::cl(e % 3, forest.level[e / 3]);
+                get!(dec, dec.bit(&mut l.ctx.refine[idx]))
+            } else {
+                get!(dec, dec.raw(1) != 0)
+            };
+            if bit {
+                out.lo[e] += thr;
+            }
+            out.width[e] = n as u8;
+        }
+        l.plane -= 1;
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::generate;
+    use crate::hierarchy::Hierarchy;
+    use crate::subdivision::refine::Split;
+
+    fn sample(forest: &Forest, seed: u64) -> Magnitudes {
+        let mut s = seed;
+        let mut next = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 33) as u32
+        };
+        let mut mag = Vec::new();
+        let mut neg = Vec::new();
+        for n in 0..forest.num_nodes {
+            for c in 0..3 {
+                let scale = 1u32 << (14 - 2 * forest.level[n] as u32 - c as u32);
+                mag.push(next() % scale);
+                neg.push(next() & 1 == 1);
+            }
+        }
+        Magnitudes::new(forest, mag, neg)
+    }
+
+    fn round_trip(contexts: bool) {
+        let h = Hierarchy::new(&generate::icosahedron(), 4, Split::Triangles, None).unwrap();
+        let f = Forest::new(&h).unwrap();
+        let m = sample(&f, 7);
+        let roots: Vec<u32> = (0..f.num_trees as u32).collect();
+        let mut e = SpihtEncoder::new(&f, &m, &roots, contexts);
+        let mut enc = Encoder::new();
+        while e.code_plane(&mut enc) {}
+        let bytes = enc.finish();
+        let mut d = SpihtDecoder::new(&f, &roots, m.top, contexts);
+        let mut dec = Decoder::new(&bytes);
+        let mut out = Coefficients::new(&f);
+        while d.decode_plane(&mut dec, &mut out) {}
+        assert_eq!(d.plane(), -1);
+        for i in 0..m.mag.len() {
+            if m.mag[i] == 0 {
+                assert_eq!(out.width[i], INSIGNIFICANT);
+            } else {
+                assert_eq!(
+                    (out.lo[i], out.width[i], out.neg[i]),
+                    (m.mag[i], 0, m.neg[i])
+                );
+            }
+        }
+        // Prefixes: every known interval contains the true magnitude.
+        for cut in [0, 1, 5, bytes.len() / 3, bytes.len() - 1] {
+            let mut d = SpihtDecoder::new(&f, &roots, m.top, contexts);
+            let mut dec = Decoder::new(&bytes[..cut]);
+            let mut out = Coefficients::new(&f);
+            while d.decode_plane(&mut dec, &mut out) {}
+            for i in 0..m.mag.len() {
+                if out.width[i] != INSIGNIFICANT {
+                    let w = 1u32 << out.width[i];
+                    assert!(out.lo[i] <= m.mag[i] && m.mag[i] < out.lo[i] + w);
+                    assert_eq!(out.neg[i], m.neg[i]);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn lossless_round_trip_with_contexts() {
+        round_trip(true);
+    }
+
+    #[test]
+    fn lossless_round_trip_raw_bits() {
+        round_trip(false);
+    }
+}
