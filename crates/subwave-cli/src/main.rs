@@ -18,6 +18,7 @@ mod distance;
 mod encode;
 mod info;
 mod print;
+mod remesh;
 mod stability;
 mod subdivide;
 #[allow(dead_code)] // used by `subwave eval` (in progress)
@@ -62,6 +63,9 @@ enum Command {
     /// subdivided mesh, low-passed level by level by the linear, cubic and quintic B-spline
     /// wavelets; prints the noise left at each level.
     Stability(StabilityArgs),
+    /// Remesh any mesh to subdivision connectivity (MAPS: QEM base domain, parameterization,
+    /// resampling; shrink-wrapping fallback), writing the semi-regular mesh and its base mesh.
+    Remesh(remesh::RemeshArgs),
     /// Benchmarks without file output (medians of several runs).
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -230,6 +234,8 @@ enum BenchCommand {
     Subdivide(BenchSubdivideArgs),
     /// Full decode of a `.swv` stream (median time, no file output).
     Decode(BenchDecodeArgs),
+    /// Remeshing to subdivision connectivity: total and per-stage times.
+    Remesh(remesh::BenchRemeshArgs),
 }
 
 /// Arguments of `subwave bench subdivide`.
@@ -424,6 +430,8 @@ fn main() -> ExitCode {
         Command::Bench(BenchCommand::Decode(args)) => bench::decode(&args),
         Command::Encode(args) => encode::run(&args),
         Command::Decode(args) => decode::run(&args),
+        Command::Remesh(args) => remesh::run(&args),
+        Command::Bench(BenchCommand::Remesh(args)) => remesh::bench(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

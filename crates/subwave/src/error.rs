@@ -104,6 +104,16 @@ pub enum MeshError {
         /// The vertices (0-based).
         vertices: Vec<u32>,
     },
+    /// The mesh has non-manifold edges (on more than two faces) and/or non-manifold
+    /// (pinched) vertices; both are listed. Fix: split them (`subwave remesh --repair`, which
+    /// cuts such edges and duplicates such vertices once per fan) or edit the faces.
+    #[error("not a 2-manifold: {} non-manifold edge(s): {}; {} non-manifold vertex(es): {}; rerun with --repair to split them", .edges.len(), list_pairs(.edges), .vertices.len(), list_ids(.vertices))]
+    NonManifold {
+        /// The non-manifold edges, as vertex pairs (0-based).
+        edges: Vec<[u32; 2]>,
+        /// The non-manifold vertices (0-based).
+        vertices: Vec<u32>,
+    },
     /// Neighbouring faces have opposite orientations across these edges. Fix: flip faces so
     /// that each interior edge is traversed once in each direction.
     #[error("inconsistent face orientation across {} edge(s): {}", .edges.len(), list_pairs(.edges))]

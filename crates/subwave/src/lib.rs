@@ -12,6 +12,7 @@
 //! - [`generate`]: meshes the tests and the demo build themselves;
 //! - [`distance`]: Metro-style surface distance (RMS, Hausdorff, PSNR);
 //! - [`hierarchy`]: semi-regular meshes (subdivision connectivity, its detection);
+//! - [`remesh`]: any mesh to subdivision connectivity (MAPS, shrink-wrapping), repair;
 //! - [`wavelet`]: wavelet transforms on semi-regular meshes (triangle wavelets of Maret ch. 4,
 //!   Bertram et al.'s B-spline wavelets).
 #![warn(missing_docs)]
@@ -23,6 +24,7 @@ pub mod generate;
 pub mod hierarchy;
 pub mod io;
 pub mod mesh;
+pub mod remesh;
 pub mod subdivision;
 pub mod topology;
 pub mod validate;

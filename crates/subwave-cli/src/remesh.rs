@@ -1,0 +1,360 @@
+//! `subwave remesh MESH -o OUT --levels L`: remeshing to subdivision connectivity (MAPS, with
+//! shrink-wrapping as the fallback), with the base mesh, the distance to the input and the
+//! triangle quality; and `subwave bench remesh`.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use subwave::distance::distance;
+use subwave::remesh::{remesh_with_progress, MethodChoice, RemeshOptions, Remeshed};
+
+use crate::print;
+
+/// The remeshing method (`--method`).
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum MethodArg {
+    /// MAPS; shrink-wrapping if the parameterization misses on a genus-0 input.
+    Auto,
+    /// MAPS only.
+    Maps,
+    /// Shrink-wrapping only.
+    ShrinkWrap,
+}
+
+/// Arguments of `subwave remesh`.
+#[derive(Debug, clap::Args)]
+pub struct RemeshArgs {
+    /// The input mesh (any polygon mesh).
+    #[arg(value_name = "MESH")]
+    pub mesh: PathBuf,
+    /// The semi-regular output (format from the extension). Without it, only the report.
+    #[arg(short, long, value_name = "OUT")]
+    pub output: Option<PathBuf>,
+    /// Subdivision levels over the base mesh.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(0..=8))]
+    pub levels: u32,
+    /// Target number of base triangles.
+    #[arg(long, value_name = "N", default_value_t = 200,
+          value_parser = clap::value_parser!(u64).range(1..=10_000_000))]
+    pub base_faces: u64,
+    /// Build a quad hierarchy (three quads per base triangle, then Catmull-Clark splits), for
+    /// Bertram's B-spline wavelets.
+    #[arg(long)]
+    pub quads: bool,
+    /// Keep edges sharper than this dihedral angle (degrees) as creases on base edges.
+    #[arg(long, value_name = "DEG")]
+    pub sharp_angle: Option<f64>,
+    /// Cut non-manifold edges and split non-manifold vertices instead of failing.
+    #[arg(long)]
+    pub repair: bool,
+    /// The method.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub method: MethodArg,
+    /// Relaxation iterations on the finest level.
+    #[arg(long, value_name = "N", default_value_t = 4)]
+    pub relax: u32,
+    /// Where to write the base mesh (default: OUT with `.base` before the extension).
+    #[arg(long, value_name = "PATH")]
+    pub base_output: Option<PathBuf>,
+    /// Area samples per surface for the distance to the input (0: skip the distance).
+    #[arg(long, value_name = "N", default_value_t = 200_000)]
+    pub samples: u64,
+    /// Print JSON (keys method, base_faces, levels, vertices, faces, psnr, rms, max,
+    /// max_relative, rms_relative, diagonal, min_angle, mean_angle, flipped, degenerate,
+    /// param_misses, time_ms, timings, repair, warnings, output, base_output).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `subwave bench remesh`.
+#[derive(Debug, clap::Args)]
+pub struct BenchRemeshArgs {
+    /// The input mesh.
+    #[arg(value_name = "MESH")]
+    pub mesh: PathBuf,
+    /// Subdivision levels.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=8))]
+    pub levels: u32,
+    /// Target number of base triangles.
+    #[arg(long, value_name = "N", default_value_t = 200)]
+    pub base_faces: u64,
+    /// Feature angle (degrees).
+    #[arg(long, value_name = "DEG")]
+    pub sharp_angle: Option<f64>,
+    /// Repair non-manifold input.
+    #[arg(long)]
+    pub repair: bool,
+    /// Runs (the median is reported).
+    #[arg(long, default_value_t = 3)]
+    pub runs: u32,
+    /// Print JSON (keys runs_ms, median_ms, stages of the median run).
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn options(args: &RemeshArgs) -> RemeshOptions {
+    RemeshOptions {
+        levels: args.levels,
+        base_faces: args.base_faces as usize,
+        quads: args.quads,
+        sharp_angle: args.sharp_angle,
+        repair: args.repair,
+        relax_iterations: args.relax,
+        method: match args.method {
+            MethodArg::Auto => MethodChoice::Auto,
+            MethodArg::Maps => MethodChoice::Maps,
+            MethodArg::ShrinkWrap => MethodChoice::ShrinkWrap,
+        },
+    }
+}
+
+/// A progress bar on stderr that appears only when the work takes over a second.
+fn run_with_bar(
+    mesh: &subwave::Mesh,
+    opts: &RemeshOptions,
+    quiet: bool,
+) -> subwave::Result<Remeshed> {
+    let bar = ProgressBar::with_draw_target(
+        Some(1000),
+        if quiet {
+            ProgressDrawTarget::hidden()
+        } else {
+            ProgressDrawTarget::stderr()
+        },
+    );
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} remesh {msg:12} [{bar:30}] {percent:>3}% {elapsed}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    // Draw only after a second (indicatif draws on the first update otherwise).
+    let start = std::time::Instant::now();
+    bar.set_draw_target(ProgressDrawTarget::hidden());
+    let mut shown = quiet;
+    let stages = [
+        "prepare",
+        "simplify",
+        "parameterize",
+        "resample",
+        "relax",
+        "quality",
+    ];
+    let weights = [0.05, 0.45, 0.1, 0.2, 0.15, 0.05];
+    let result = remesh_with_progress(mesh, opts, &mut |stage, f| {
+        if !shown && start.elapsed() > Duration::from_secs(1) {
+            bar.set_draw_target(ProgressDrawTarget::stderr());
+            shown = true;
+        }
+        let i = stages.iter().position(|s| *s == stage).unwrap_or(0);
+        let done: f64 = weights[..i].iter().sum::<f64>() + weights[i] * f.clamp(0.0, 1.0);
+        bar.set_message(stage.to_string());
+        bar.set_position((done * 1000.0) as u64);
+    });
+    bar.finish_and_clear();
+    result
+}
+
+fn base_path(out: &Path) -> PathBuf {
+    let stem = out.file_stem().and_then(|s| s.to_str()).unwrap_or("remesh");
+    let name = match out.extension().and_then(|e| e.to_str()) {
+        Some(ext) => format!("{stem}.base.{ext}"),
+        None => format!("{stem}.base"),
+    };
+    out.with_file_name(name)
+}
+
+/// Runs `subwave remesh`.
+pub fn run(args: &RemeshArgs) -> Result<()> {
+    let mesh = subwave::io::read_mesh(&args.mesh, None)?;
+    let opts = options(args);
+    let r = run_with_bar(&mesh, &opts, false)
+        .with_context(|| format!("remeshing {}", args.mesh.display()))?;
+    for w in &r.warnings {
+        tracing::warn!("{w}");
+        if !args.json {
+            eprintln!("warning: {w}");
+        }
+    }
+    let mut base_output = None;
+    if let Some(out) = &args.output {
+        subwave::io::write_mesh(&r.mesh, out, None)?;
+        let bp = args.base_output.clone().unwrap_or_else(|| base_path(out));
+        subwave::io::write_mesh(&r.base, &bp, None)?;
+        base_output = Some(bp);
+    } else if let Some(bp) = &args.base_output {
+        subwave::io::write_mesh(&r.base, bp, None)?;
+        base_output = Some(bp.clone());
+    }
+    let d = if args.samples > 0 {
+        Some(distance(&mesh, &r.mesh, args.samples as usize)?)
+    } else {
+        None
+    };
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    if args.json {
+        let v = serde_json::json!({
+            "input": args.mesh.display().to_string(),
+            "method": r.method.name(),
+            "base_faces": r.base.num_faces(),
+            "base_vertices": r.base.num_vertices(),
+            "levels": args.levels,
+            "quads": args.quads,
+            "vertices": r.mesh.num_vertices(),
+            "faces": r.mesh.num_faces(),
+            "psnr": d.map(|d| d.psnr),
+            "rms": d.map(|d| d.rms),
+            "max": d.map(|d| d.max),
+            "rms_relative": d.map(|d| d.rms / d.diagonal),
+            "max_relative": d.map(|d| d.max / d.diagonal),
+            "diagonal": d.map(|d| d.diagonal),
+            "min_angle": r.quality.min_angle,
+            "mean_angle": r.quality.mean_angle,
+            "flipped": r.quality.flipped,
+            "degenerate": r.quality.degenerate,
+            "param_misses": r.param_misses,
+            "time_ms": r.timings.total_ms,
+            "timings": r.timings,
+            "repair": r.repair,
+            "warnings": r.warnings,
+            "output": args.output.as_ref().map(|p| p.display().to_string()),
+            "base_output": base_output.as_ref().map(|p| p.display().to_string()),
+        });
+        writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
+    } else {
+        writeln!(
+            out,
+            "{} → semi-regular, method {}",
+            print::path(&args.mesh),
+            r.method.name()
+        )?;
+        let mut t = print::Table::new();
+        t.row(
+            "base",
+            format!(
+                "{} faces, {} vertices",
+                r.base.num_faces(),
+                r.base.num_vertices()
+            ),
+        )
+        .row(
+            "levels",
+            format!(
+                "{} ({} split)",
+                args.levels,
+                if args.quads { "quad" } else { "triangle" }
+            ),
+        )
+        .row(
+            "result",
+            format!(
+                "{} faces, {} vertices",
+                r.mesh.num_faces(),
+                r.mesh.num_vertices()
+            ),
+        );
+        if let Some(d) = d {
+            t.row("psnr", format!("{:.2} dB", d.psnr))
+                .row(
+                    "rms",
+                    format!("{:.4e} ({:.3e} of diagonal)", d.rms, d.rms / d.diagonal),
+                )
+                .row(
+                    "max (Hausdorff)",
+                    format!(
+                        "{:.4e} ({:.3}% of diagonal)",
+                        d.max,
+                        100.0 * d.max / d.diagonal
+                    ),
+                );
+        }
+        t.row(
+            "angles",
+            format!(
+                "min {:.2}°, mean of minima {:.2}°",
+                r.quality.min_angle, r.quality.mean_angle
+            ),
+        )
+        .row(
+            "flipped / degenerate",
+            format!("{} / {}", r.quality.flipped, r.quality.degenerate),
+        )
+        .row("time", format!("{:.0} ms", r.timings.total_ms));
+        if let Some(o) = &args.output {
+            t.row("wrote", print::path(o));
+        }
+        if let Some(b) = &base_output {
+            t.row("base mesh", print::path(b));
+        }
+        t.write(&mut out, "  ")?;
+    }
+    out.flush()?;
+    Ok(())
+}
+
+/// Runs `subwave bench remesh`.
+pub fn bench(args: &BenchRemeshArgs) -> Result<()> {
+    let mesh = subwave::io::read_mesh(&args.mesh, None)?;
+    let opts = RemeshOptions {
+        levels: args.levels,
+        base_faces: args.base_faces as usize,
+        sharp_angle: args.sharp_angle,
+        repair: args.repair,
+        ..RemeshOptions::default()
+    };
+    let mut runs = Vec::new();
+    for _ in 0..args.runs.max(1) {
+        let r = run_with_bar(&mesh, &opts, true)?;
+        runs.push(r.timings);
+    }
+    let mut sorted: Vec<_> = runs.iter().map(|t| t.total_ms).collect();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let med_run = runs
+        .iter()
+        .find(|t| t.total_ms == median)
+        .copied()
+        .unwrap_or_default();
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    if args.json {
+        let v = serde_json::json!({
+            "mesh": args.mesh.display().to_string(),
+            "levels": args.levels,
+            "threads": rayon_threads(),
+            "runs_ms": sorted,
+            "median_ms": median,
+            "stages": med_run,
+        });
+        writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
+    } else {
+        writeln!(
+            out,
+            "remesh {} at {} levels, {} runs",
+            print::path(&args.mesh),
+            args.levels,
+            sorted.len()
+        )?;
+        let mut t = print::Table::new();
+        t.row("median", format!("{median:.0} ms"))
+            .row("prepare", format!("{:.0} ms", med_run.prepare_ms))
+            .row("simplify", format!("{:.0} ms", med_run.simplify_ms))
+            .row("parameterize", format!("{:.0} ms", med_run.parameterize_ms))
+            .row("resample", format!("{:.0} ms", med_run.resample_ms))
+            .row("relax", format!("{:.0} ms", med_run.relax_ms));
+        t.write(&mut out, "  ")?;
+    }
+    out.flush()?;
+    Ok(())
+}
+
+fn rayon_threads() -> usize {
+    std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1)
+}

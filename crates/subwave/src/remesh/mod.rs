@@ -1,0 +1,430 @@
+//! Remeshing an arbitrary triangle or polygon mesh to subdivision connectivity.
+//!
+//! The wavelet transforms (Maret 2003 ch. 4, Bertram et al.) and the codec need a
+//! *semi-regular* mesh: a base mesh split `L` times. [`remesh`] builds one that approximates
+//! an arbitrary input and has its topology (genus, boundaries, components), following MAPS
+//! (Lee, Sweldens, Schröder, Cowsar & Dobkin, SIGGRAPH 1998):
+//!
+//! 1. [`repair`]: triangulate, drop degenerate faces and unreferenced vertices, and (on
+//!    request) cut non-manifold edges and split non-manifold vertices;
+//! 2. [`simplify`]: topology-preserving QEM simplification to about `base_faces` triangles,
+//!    boundary and feature edges kept as chains, each removed vertex's parameter tracked over
+//!    the simplified triangles (MAPS §3);
+//! 3. [`param`]: the resulting map from the base domain onto the input (MAPS §3.4);
+//! 4. [`resample`]: `L` splits of the base domain, every vertex mapped onto the input through
+//!    the parameterization (MAPS §4), then a tangential relaxation with guarded re-projection
+//!    for well-shaped triangles; boundary and feature base edges keep their vertices on the
+//!    input's boundary curves and creases;
+//! 5. [`shrinkwrap`]: the fallback (Kobbelt et al. 1999, as Bertram §5.3) for genus-0
+//!    inputs when the parameterization fails;
+//! 6. [`quality`]: angles, flipped and degenerate faces.
+//!
+//! The result's vertex order is the ordering contract of [`crate::subdivision::refine`]
+//! (base vertices, then one vertex per edge per level in edge order; children `4k..4k+3`,
+//! Maret eq. 5.7), so [`crate::hierarchy::Hierarchy::detect`] accepts it and the wavelet
+//! transforms take it directly; [`Remeshed::hierarchy`] is that hierarchy.
+
+pub mod param;
+pub mod quality;
+pub mod repair;
+pub mod resample;
+pub mod shrinkwrap;
+pub mod simplify;
+
+use std::collections::HashSet;
+use std::time::Instant;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::hierarchy::Hierarchy;
+use crate::mesh::Mesh;
+use crate::subdivision::refine::Split;
+use crate::subdivision::sharp_edges_by_angle;
+use crate::topology::Topology;
+use crate::{Error, Result};
+
+pub use quality::Quality;
+pub use repair::RepairReport;
+
+/// Which remeshing method to run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MethodChoice {
+    /// MAPS, falling back to shrink-wrapping for genus-0 components when the
+    /// parameterization misses.
+    #[default]
+    Auto,
+    /// MAPS only.
+    Maps,
+    /// Shrink-wrapping only.
+    ShrinkWrap,
+}
+
+/// The method that produced a remesh.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// Parameterization by simplification and resampling (Lee et al. 1998).
+    Maps,
+    /// Shrink-wrapping (Kobbelt et al. 1999).
+    ShrinkWrap,
+}
+
+impl Method {
+    /// A short name (`maps`, `shrink-wrap`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Maps => "maps",
+            Method::ShrinkWrap => "shrink-wrap",
+        }
+    }
+}
+
+/// Options of [`remesh`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct RemeshOptions {
+    /// Number of subdivision levels `L` over the base mesh.
+    pub levels: u32,
+    /// Target number of base triangles (the simplification stops at about this many, more
+    /// where topology, boundaries or features forbid further collapses).
+    pub base_faces: usize,
+    /// Build a quad hierarchy (each base triangle into three quads, then 1-to-4 quad splits;
+    /// for Bertram et al.'s B-spline wavelets) instead of 1-to-4 triangle splits.
+    pub quads: bool,
+    /// Edges with a dihedral angle above this many degrees are features: kept on base edges so
+    /// creases stay sharp. `None`: no features (boundaries are always kept).
+    pub sharp_angle: Option<f64>,
+    /// Cut non-manifold edges and split non-manifold vertices instead of failing.
+    pub repair: bool,
+    /// Relaxation iterations on the finest level.
+    pub relax_iterations: u32,
+    /// Which method to run.
+    pub method: MethodChoice,
+}
+
+impl Default for RemeshOptions {
+    fn default() -> Self {
+        RemeshOptions {
+            levels: 3,
+            base_faces: 200,
+            quads: false,
+            sharp_angle: None,
+            repair: false,
+            relax_iterations: 4,
+            method: MethodChoice::Auto,
+        }
+    }
+}
+
+/// Wall-clock times of the stages, in milliseconds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Timings {
+    /// Triangulation, cleaning, repair.
+    pub prepare_ms: f64,
+    /// QEM simplification with parameter tracking.
+    pub simplify_ms: f64,
+    /// Charts and point-location grids.
+    pub parameterize_ms: f64,
+    /// Splitting and mapping (or shrink-wrapping).
+    pub resample_ms: f64,
+    /// Relaxation.
+    pub relax_ms: f64,
+    /// Everything, including the quality measurement.
+    pub total_ms: f64,
+}
+
+/// A semi-regular remesh.
+#[derive(Clone, Debug)]
+pub struct Remeshed {
+    /// The finest level, vertices and faces in contract order (equal to
+    /// `hierarchy.finest_mesh()`).
+    pub mesh: Mesh,
+    /// The base mesh (triangles; with [`RemeshOptions::quads`], the quads made of them), with
+    /// the positions its vertices have in [`Remeshed::mesh`].
+    pub base: Mesh,
+    /// The hierarchy over [`Remeshed::base`].
+    pub hierarchy: Hierarchy,
+    /// The method that ran.
+    pub method: Method,
+    /// Face quality of the finest level.
+    pub quality: Quality,
+    /// What the input preparation changed.
+    pub repair: RepairReport,
+    /// Base-domain points that fell outside every input triangle's image and took the
+    /// nearest one (MAPS only).
+    pub param_misses: usize,
+    /// Warnings for the user (degenerate faces removed, fallbacks taken).
+    pub warnings: Vec<String>,
+    /// Stage times.
+    pub timings: Timings,
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Remeshes `mesh` to subdivision connectivity (see the module documentation).
+///
+/// # Errors
+/// As [`remesh_with_progress`].
+pub fn remesh(mesh: &Mesh, opts: &RemeshOptions) -> Result<Remeshed> {
+    remesh_with_progress(mesh, opts, &mut |_, _| {})
+}
+
+/// [`remesh`] reporting progress: `progress(stage, fraction)` is called with the stage name
+/// (`prepare`, `simplify`, `parameterize`, `resample`, `relax`, `quality`) and the fraction of
+/// that stage done, from the calling thread.
+///
+/// # Errors
+/// [`Error::Mesh`] for bad indices, or (without [`RemeshOptions::repair`]) a non-manifold or
+/// inconsistently oriented input ([`crate::MeshError::NonManifold`] names the edges and
+/// vertices); [`Error::InvalidArgument`] for an input without faces, `base_faces == 0`, or a
+/// result above [`crate::subdivision::MAX_FACES`] faces.
+pub fn remesh_with_progress(
+    mesh: &Mesh,
+    opts: &RemeshOptions,
+    progress: &mut dyn FnMut(&str, f64),
+) -> Result<Remeshed> {
+    let t_all = Instant::now();
+    let mut timings = Timings::default();
+    if opts.base_faces == 0 {
+        return Err(Error::InvalidArgument(
+            "base faces must be at least 1".to_string(),
+        ));
+    }
+    let mut warnings = Vec::new();
+    // 1. Prepare.
+    let t = Instant::now();
+    progress("prepare", 0.0);
+    let (pos, tris, repair) = repair::prepare(mesh, opts.repair)?;
+    if tris.is_empty() {
+        return Err(Error::InvalidArgument(
+            "the mesh has no (non-degenerate) faces to remesh".to_string(),
+        ));
+    }
+    if repair.degenerate_faces > 0 {
+        warnings.push(format!(
+            "removed {} degenerate face(s) (repeated vertex or zero area)",
+            repair.degenerate_faces
+        ));
+    }
+    let prepared = Mesh::from_triangles(pos.clone(), &tris);
+    let features: HashSet<(u32, u32)> = match opts.sharp_angle {
+        Some(deg) => {
+            let topo = Topology::build(&prepared);
+            sharp_edges_by_angle(&prepared, &topo, deg)
+                .into_iter()
+                .map(|e| {
+                    let [a, b] = topo.edge_vertices[e as usize];
+                    (a.min(b), a.max(b))
+                })
+                .collect()
+        }
+        None => HashSet::new(),
+    };
+    timings.prepare_ms = ms(t);
+    progress("prepare", 1.0);
+
+    // 2. Simplify with parameter tracking.
+    let t = Instant::now();
+    let s = simplify::simplify(&pos, &tris, &features, opts.base_faces, &mut |f| {
+        progress("simplify", f)
+    });
+    let base_tri = Mesh::from_triangles(s.positions.clone(), &s.triangles);
+    let proj = resample::Projector::new(&pos, &tris)?;
+    timings.simplify_ms = ms(t);
+
+    // 3. Parameterization.
+    let t = Instant::now();
+    progress("parameterize", 0.0);
+    let map = param::ParamMap::new(&base_tri, &pos, &tris, &s.params);
+    timings.parameterize_ms = ms(t);
+    progress("parameterize", 1.0);
+
+    // 4. Hierarchy and resampling.
+    let t = Instant::now();
+    let (split, base) = if opts.quads {
+        let h1 = Hierarchy::new(&base_tri, 1, Split::Polygons, None)?;
+        (Split::Polygons, h1.finest_mesh())
+    } else {
+        (Split::Triangles, base_tri.clone())
+    };
+    let mut h = Hierarchy::new(&base, opts.levels, split, None)?;
+    let params = resample::level_params(&h, opts.levels as usize, opts.quads);
+    let located: Vec<param::Located> = params.par_iter().map(|p| map.locate(p)).collect();
+    let param_misses = located.iter().filter(|l| l.inside < -0.02).count();
+    let mut fine: Vec<DVec3> = located
+        .par_iter()
+        .zip(&params)
+        .map(|(l, p)| match map.point(l) {
+            Some(q) if l.inside >= -0.02 => q,
+            _ => {
+                // Outside every image: the closest input point of the base-surface point.
+                let t = s.triangles[p.face as usize];
+                let b: DVec3 = (0..3).map(|k| s.positions[t[k] as usize] * p.bary[k]).sum();
+                proj.closest(b).0
+            }
+        })
+        .collect();
+    // Base vertices are input vertices; vertices on boundary and feature base edges follow
+    // the input's chain between them (1D parameterization along the chain).
+    let chains = chain_polylines(&s, &pos);
+    fine.par_iter_mut().zip(&params).for_each(|(p, prm)| {
+        let t = s.triangles[prm.face as usize];
+        if let Some(k) = prm.bary.iter().position(|&x| x == 1.0) {
+            *p = s.positions[t[k] as usize];
+            return;
+        }
+        for k in 0..3 {
+            if prm.bary[k] != 0.0 {
+                continue;
+            }
+            let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+            if let Some(line) = chains.get(&(a.min(b), a.max(b))) {
+                // Parameter along the sorted edge (min → max).
+                let sa = prm.bary[(k + 1) % 3];
+                let along = if a < b { 1.0 - sa } else { sa };
+                *p = polyline_at(line, along);
+            }
+        }
+    });
+    progress("resample", 1.0);
+    // Fixed vertices: base vertices and vertices on chain base edges.
+    let fixed: Vec<bool> = params
+        .iter()
+        .map(|p| {
+            let t = s.triangles[p.face as usize];
+            if p.bary.contains(&1.0) {
+                return true;
+            }
+            (0..3).any(|k| {
+                p.bary[k] == 0.0 && {
+                    let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+                    s.chain_edges.contains(&(a.min(b), a.max(b)))
+                }
+            })
+        })
+        .collect();
+    let genus0 = Topology::build(&prepared).genus() == Some(0);
+    let mut method = Method::Maps;
+    let miss_limit = (fine.len() / 20).max(8);
+    let use_shrinkwrap = match opts.method {
+        MethodChoice::ShrinkWrap => true,
+        MethodChoice::Maps => false,
+        MethodChoice::Auto => param_misses > miss_limit && genus0,
+    };
+    if opts.method == MethodChoice::Auto && param_misses > miss_limit && !genus0 {
+        warnings.push(format!(
+            "{param_misses} resampled points fell outside the parameterization (kept their nearest image); shrink-wrapping needs genus 0"
+        ));
+    }
+    timings.resample_ms = ms(t);
+    let t = Instant::now();
+    if use_shrinkwrap {
+        if opts.method == MethodChoice::Auto {
+            warnings.push(format!(
+                "parameterization missed {param_misses} points: fell back to shrink-wrapping"
+            ));
+        }
+        method = Method::ShrinkWrap;
+        let nb = h.base.positions.len();
+        fine = shrinkwrap::shrinkwrap(
+            &h,
+            &fixed[..nb],
+            &proj,
+            opts.relax_iterations.max(2),
+            &mut |f| progress("resample", f),
+        );
+    } else {
+        progress("relax", 0.0);
+        let topo = &h.topologies[opts.levels as usize];
+        resample::relax(&mut fine, topo, &fixed, &proj, opts.relax_iterations, 0.5);
+        let left = resample::untangle(&mut fine, topo, &fixed, &proj, 12);
+        if left > 0 {
+            warnings.push(format!("{left} face(s) still flipped after untangling"));
+        }
+        progress("relax", 1.0);
+    }
+    timings.relax_ms = ms(t);
+    let nb = h.base.positions.len();
+    h.base.positions.copy_from_slice(&fine[..nb]);
+    h.positions = fine;
+    let out = h.finest_mesh();
+    let base = h.base.clone();
+    progress("quality", 0.0);
+    let quality = quality::measure(&out, &proj);
+    progress("quality", 1.0);
+    timings.total_ms = ms(t_all);
+    Ok(Remeshed {
+        mesh: out,
+        base,
+        hierarchy: h,
+        method,
+        quality,
+        repair,
+        param_misses,
+        warnings,
+        timings,
+    })
+}
+
+/// For each chain base edge (sorted vertex pair), the input chain vertices parameterized on
+/// it as `(parameter from the smaller to the larger base vertex, position)`, sorted, with the
+/// two base vertices at 0 and 1.
+fn chain_polylines(
+    s: &simplify::Simplified,
+    pos: &[DVec3],
+) -> std::collections::HashMap<(u32, u32), Vec<(f64, DVec3)>> {
+    let mut out: std::collections::HashMap<(u32, u32), Vec<(f64, DVec3)>> = s
+        .chain_edges
+        .iter()
+        .map(|&(a, b)| {
+            (
+                (a, b),
+                vec![
+                    (0.0, s.positions[a as usize]),
+                    (1.0, s.positions[b as usize]),
+                ],
+            )
+        })
+        .collect();
+    for (v, p) in s.params.iter().enumerate() {
+        if p.bary.contains(&1.0) {
+            continue;
+        }
+        let t = s.triangles[p.face as usize];
+        for k in 0..3 {
+            if p.bary[k] != 0.0 {
+                continue;
+            }
+            let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+            if let Some(line) = out.get_mut(&(a.min(b), a.max(b))) {
+                let sa = p.bary[(k + 1) % 3];
+                let along = if a < b { 1.0 - sa } else { sa };
+                line.push((along, pos[v]));
+            }
+        }
+    }
+    for line in out.values_mut() {
+        line.sort_by(|x, y| x.0.total_cmp(&y.0));
+    }
+    out
+}
+
+/// The point at parameter `s` of a sorted polyline.
+fn polyline_at(line: &[(f64, DVec3)], s: f64) -> DVec3 {
+    let i = line.partition_point(|x| x.0 <= s);
+    if i == 0 {
+        return line[0].1;
+    }
+    if i >= line.len() {
+        return line[line.len() - 1].1;
+    }
+    let (s0, p0) = line[i - 1];
+    let (s1, p1) = line[i];
+    if s1 - s0 <= 0.0 {
+        p0
+    } else {
+        p0.lerp(p1, (s - s0) / (s1 - s0))
+    }
+}

@@ -1,0 +1,378 @@
+//! The MAPS parameterization as a map from the base domain onto the input surface.
+//!
+//! Lee, Sweldens, Schröder, Cowsar & Dobkin, "MAPS: Multiresolution Adaptive
+//! Parameterization of Surfaces" (SIGGRAPH 1998), §3.4 ("point location"): after the
+//! simplification of [`super::simplify`], every input vertex has a parameter
+//! `(base triangle, barycentric coordinates)`, so every input triangle has an image in the
+//! base domain. A point of the base domain is mapped onto the input surface by finding the
+//! input triangle whose image contains it and interpolating the input positions with the
+//! barycentric coordinates of the point in that image (piecewise linear, so the image lies on
+//! the input surface).
+//!
+//! Input triangles whose corners lie in different base triangles straddle base edges or
+//! vertices; MAPS flattens the neighbourhood with a conformal map. Here each base triangle `t`
+//! has an affine *chart* of the base triangles sharing a vertex with it: each neighbour is
+//! unfolded across the shared edge as a parallelogram (the corner opposite the edge goes to
+//! `a + b − c`), composing unfoldings along the shortest edge path (breadth first). Corners
+//! that are base vertices of `t` map to `t`'s corners exactly. Each input triangle is
+//! registered in the frames of its corners' base triangles (and of the base triangles around
+//! a base-vertex corner), and each frame has a uniform grid over its barycentric square for
+//! point location.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::simplify::Param;
+use crate::mesh::Mesh;
+use crate::topology::Topology;
+
+type Mat = [[f64; 3]; 3]; // columns: the frame coordinates of a neighbour's corners
+
+fn mul(m: &Mat, b: [f64; 3]) -> [f64; 3] {
+    let mut r = [0.0; 3];
+    for (j, col) in m.iter().enumerate() {
+        for i in 0..3 {
+            r[i] += col[i] * b[j];
+        }
+    }
+    r
+}
+
+/// A registered input triangle in one base frame.
+#[derive(Clone, Copy)]
+struct Entry {
+    tri: u32,
+    /// Frame coordinates (x, y) = (b1, b2) of its three corners.
+    xy: [[f64; 2]; 3],
+}
+
+/// The inverse parameterization: base domain → input surface.
+pub struct ParamMap<'a> {
+    input_pos: &'a [DVec3],
+    input_tris: &'a [[u32; 3]],
+    base_tris: Vec<[u32; 3]>,
+    charts: Vec<Vec<(u32, Mat)>>,
+    entries: Vec<Vec<Entry>>,
+    grid_res: Vec<u32>,
+    grid_offsets: Vec<Vec<u32>>,
+    grid_members: Vec<Vec<u32>>,
+    /// Input triangles that could not be registered in any frame.
+    pub unregistered: usize,
+}
+
+/// Where a base-domain point landed.
+#[derive(Clone, Copy, Debug)]
+pub struct Located {
+    /// The input triangle.
+    pub tri: u32,
+    /// Barycentric coordinates in it (clamped to the triangle).
+    pub lambda: [f64; 3],
+    /// The smallest unclamped coordinate: ≥ 0 (up to rounding) when the point was inside the
+    /// triangle's image, negative when the nearest image was taken.
+    pub inside: f64,
+}
+
+impl<'a> ParamMap<'a> {
+    /// Builds charts, registrations and grids.
+    ///
+    /// Preconditions: `base` is a manifold triangle mesh; every `params[i].face` indexes it.
+    pub fn new(
+        base: &Mesh,
+        input_pos: &'a [DVec3],
+        input_tris: &'a [[u32; 3]],
+        params: &[Param],
+    ) -> ParamMap<'a> {
+        let topo = Topology::build(base);
+        let nb = base.num_faces();
+        let base_tris: Vec<[u32; 3]> = base.faces().map(|f| [f[0], f[1], f[2]]).collect();
+        let charts: Vec<Vec<(u32, Mat)>> = (0..nb)
+            .into_par_iter()
+            .map(|t| build_chart(&topo, &base_tris, t))
+            .collect();
+        // Registration.
+        let mut entries: Vec<Vec<Entry>> = vec![Vec::new(); nb];
+        let mut unregistered = 0;
+        let mut frames: Vec<u32> = Vec::with_capacity(16);
+        let to_frame = |t: usize, p: &Param| -> Option<[f64; 3]> {
+            if p.face as usize == t {
+                return Some(p.bary);
+            }
+            // A base vertex that is a corner of t.
+            if let Some(k) = p.bary.iter().position(|&x| x == 1.0) {
+                let w = base_tris[p.face as usize][k];
+                if let Some(c) = base_tris[t].iter().position(|&x| x == w) {
+                    let mut b = [0.0; 3];
+                    b[c] = 1.0;
+                    return Some(b);
+                }
+            }
+            charts[t]
+                .iter()
+                .find(|(f, _)| *f == p.face)
+                .map(|(_, m)| mul(m, p.bary))
+        };
+        for (ti, tri) in input_tris.iter().enumerate() {
+            frames.clear();
+            for &v in tri {
+                let p = &params[v as usize];
+                if !frames.contains(&p.face) {
+                    frames.push(p.face);
+                }
+                if let Some(k) = p.bary.iter().position(|&x| x == 1.0) {
+                    let w = base_tris[p.face as usize][k];
+                    for &f in topo.vertex_faces(w as usize) {
+                        if !frames.contains(&f) {
+                            frames.push(f);
+                        }
+                    }
+                }
+            }
+            let mut any = false;
+            for &t in &frames {
+                let t = t as usize;
+                let b: Option<Vec<[f64; 3]>> = tri
+                    .iter()
+                    .map(|&v| to_frame(t, &params[v as usize]))
+                    .collect();
+                let Some(b) = b else { continue };
+                let xy = [[b[0][1], b[0][2]], [b[1][1], b[1][2]], [b[2][1], b[2][2]]];
+                let area = (xy[1][0] - xy[0][0]) * (xy[2][1] - xy[0][1])
+                    - (xy[2][0] - xy[0][0]) * (xy[1][1] - xy[0][1]);
+                if area.abs() < 1e-24 {
+                    continue;
+                }
+                // Skip frames the image does not reach.
+                let (minx, maxx) = min_max(xy.map(|p| p[0]));
+                let (miny, maxy) = min_max(xy.map(|p| p[1]));
+                if maxx < 0.0 || maxy < 0.0 || minx + miny > 1.0 || minx > 1.0 || miny > 1.0 {
+                    continue;
+                }
+                entries[t].push(Entry { tri: ti as u32, xy });
+                any = true;
+            }
+            if !any {
+                unregistered += 1;
+            }
+        }
+        // Grids.
+        let grids: Vec<(u32, Vec<u32>, Vec<u32>)> =
+            entries.par_iter().map(|e| build_grid(e)).collect();
+        let mut grid_res = Vec::with_capacity(nb);
+        let mut grid_offsets = Vec::with_capacity(nb);
+        let mut grid_members = Vec::with_capacity(nb);
+        for (g, o, m) in grids {
+            grid_res.push(g);
+            grid_offsets.push(o);
+            grid_members.push(m);
+        }
+        ParamMap {
+            input_pos,
+            input_tris,
+            base_tris,
+            charts,
+            entries,
+            grid_res,
+            grid_offsets,
+            grid_members,
+            unregistered,
+        }
+    }
+
+    /// The base triangles.
+    pub fn base_triangles(&self) -> &[[u32; 3]] {
+        &self.base_tris
+    }
+
+    /// `p` expressed in base triangle `t`'s frame, if `p.face` is in `t`'s chart.
+    pub fn to_frame(&self, t: u32, p: &Param) -> Option<[f64; 3]> {
+        if p.face == t {
+            return Some(p.bary);
+        }
+        self.charts[t as usize]
+            .iter()
+            .find(|(f, _)| *f == p.face)
+            .map(|(_, m)| mul(m, p.bary))
+    }
+
+    /// The chart of `t`: its neighbours and the matrices taking their barycentric
+    /// coordinates to `t`'s frame.
+    pub fn chart(&self, t: u32) -> impl Iterator<Item = (u32, [[f64; 3]; 3])> + '_ {
+        self.charts[t as usize].iter().copied()
+    }
+
+    /// Locates a base-domain point on the input.
+    pub fn locate(&self, p: &Param) -> Located {
+        let t = p.face as usize;
+        let (x, y) = (p.bary[1], p.bary[2]);
+        let g = self.grid_res[t];
+        let mut best: Option<(f64, Entry, [f64; 3])> = None;
+        let consider = |best: &mut Option<(f64, Entry, [f64; 3])>, e: &Entry| {
+            let l = bary2(e.xy, x, y);
+            let m = l[0].min(l[1]).min(l[2]);
+            if best.as_ref().is_none_or(|(bm, _, _)| m > *bm) {
+                *best = Some((m, *e, l));
+            }
+        };
+        if g > 0 {
+            let cx = ((x * g as f64).floor() as i64).clamp(0, g as i64 - 1) as usize;
+            let cy = ((y * g as f64).floor() as i64).clamp(0, g as i64 - 1) as usize;
+            let c = cy * g as usize + cx;
+            let o = &self.grid_offsets[t];
+            for &i in &self.grid_members[t][o[c] as usize..o[c + 1] as usize] {
+                consider(&mut best, &self.entries[t][i as usize]);
+            }
+        }
+        if best.as_ref().is_none_or(|(m, _, _)| *m < -1e-9) {
+            for e in &self.entries[t] {
+                consider(&mut best, e);
+            }
+        }
+        match best {
+            Some((m, e, l)) => {
+                let mut l = l.map(|v| v.max(0.0));
+                let s = l[0] + l[1] + l[2];
+                if s > 0.0 {
+                    l = l.map(|v| v / s);
+                } else {
+                    l = [1.0 / 3.0; 3];
+                }
+                Located {
+                    tri: e.tri,
+                    lambda: l,
+                    inside: m,
+                }
+            }
+            None => Located {
+                tri: u32::MAX,
+                lambda: [1.0 / 3.0; 3],
+                inside: f64::NEG_INFINITY,
+            },
+        }
+    }
+
+    /// The input-surface point of a located parameter (`None` if nothing was found).
+    pub fn point(&self, l: &Located) -> Option<DVec3> {
+        if l.tri == u32::MAX {
+            return None;
+        }
+        let t = self.input_tris[l.tri as usize];
+        Some(
+            self.input_pos[t[0] as usize] * l.lambda[0]
+                + self.input_pos[t[1] as usize] * l.lambda[1]
+                + self.input_pos[t[2] as usize] * l.lambda[2],
+        )
+    }
+}
+
+fn min_max(v: [f64; 3]) -> (f64, f64) {
+    (v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]))
+}
+
+/// Barycentric coordinates of `(x, y)` in the 2D triangle `xy` (either orientation).
+fn bary2(xy: [[f64; 2]; 3], x: f64, y: f64) -> [f64; 3] {
+    let [a, b, c] = xy;
+    let det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+    let l1 = ((x - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (y - a[1])) / det;
+    let l2 = ((b[0] - a[0]) * (y - a[1]) - (x - a[0]) * (b[1] - a[1])) / det;
+    [1.0 - l1 - l2, l1, l2]
+}
+
+fn build_grid(entries: &[Entry]) -> (u32, Vec<u32>, Vec<u32>) {
+    if entries.is_empty() {
+        return (0, vec![0], Vec::new());
+    }
+    let g = ((entries.len() as f64 / 2.0).sqrt().ceil() as u32).clamp(1, 64);
+    let gf = g as f64;
+    let cells = (g * g) as usize;
+    let range = |e: &Entry| {
+        let (minx, maxx) = min_max(e.xy.map(|p| p[0]));
+        let (miny, maxy) = min_max(e.xy.map(|p| p[1]));
+        let c = |v: f64| ((v * gf).floor() as i64).clamp(0, g as i64 - 1) as usize;
+        (c(minx), c(maxx), c(miny), c(maxy))
+    };
+    let mut counts = vec![0u32; cells + 1];
+    for e in entries {
+        let (x0, x1, y0, y1) = range(e);
+        for cy in y0..=y1 {
+            for cx in x0..=x1 {
+                counts[cy * g as usize + cx + 1] += 1;
+            }
+        }
+    }
+    for i in 0..cells {
+        counts[i + 1] += counts[i];
+    }
+    let mut fill = counts.clone();
+    let mut members = vec![0u32; counts[cells] as usize];
+    for (i, e) in entries.iter().enumerate() {
+        let (x0, x1, y0, y1) = range(e);
+        for cy in y0..=y1 {
+            for cx in x0..=x1 {
+                let c = cy * g as usize + cx;
+                members[fill[c] as usize] = i as u32;
+                fill[c] += 1;
+            }
+        }
+    }
+    (g, counts, members)
+}
+
+/// The chart of base triangle `t`: every triangle sharing a vertex with it, reached by
+/// edge-adjacent unfoldings (breadth first), with its corners' coordinates in `t`'s frame.
+fn build_chart(topo: &Topology, tris: &[[u32; 3]], t: usize) -> Vec<(u32, Mat)> {
+    let tv = tris[t];
+    let near = |f: usize| tris[f].iter().any(|v| tv.contains(v));
+    let mut out: Vec<(u32, Mat)> = Vec::new();
+    let identity: Mat = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    let mut queue: Vec<(u32, Mat)> = vec![(t as u32, identity)];
+    let mut seen: Vec<u32> = vec![t as u32];
+    let mut head = 0;
+    while head < queue.len() {
+        let (s, ms) = queue[head];
+        head += 1;
+        let st = tris[s as usize];
+        for &e in topo.face_edges(s as usize) {
+            let ef = topo.edge_faces(e as usize);
+            for &n in ef {
+                if n == s || seen.contains(&n) || !near(n as usize) {
+                    continue;
+                }
+                seen.push(n);
+                let [a, b] = topo.edge_vertices[e as usize];
+                let ia = st.iter().position(|&x| x == a).unwrap();
+                let ib = st.iter().position(|&x| x == b).unwrap();
+                let ic = 3 - ia - ib;
+                let ca = ms[ia];
+                let cb = ms[ib];
+                let cc = ms[ic];
+                let d = [
+                    ca[0] + cb[0] - cc[0],
+                    ca[1] + cb[1] - cc[1],
+                    ca[2] + cb[2] - cc[2],
+                ];
+                let nt = tris[n as usize];
+                let mut m: Mat = [[0.0; 3]; 3];
+                for (k, &w) in nt.iter().enumerate() {
+                    m[k] = if w == a {
+                        ca
+                    } else if w == b {
+                        cb
+                    } else {
+                        d
+                    };
+                }
+                // Shared base vertices of t map to t's corners exactly.
+                for (k, &w) in nt.iter().enumerate() {
+                    if let Some(c) = tv.iter().position(|&x| x == w) {
+                        let mut u = [0.0; 3];
+                        u[c] = 1.0;
+                        m[k] = u;
+                    }
+                }
+                queue.push((n, m));
+                out.push((n, m));
+            }
+        }
+    }
+    out
+}

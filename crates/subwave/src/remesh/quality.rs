@@ -1,0 +1,73 @@
+//! Face quality of a remesh: angles, flipped and degenerate faces.
+//!
+//! The measures MAPS (Lee et al. 1998, §5) and the remeshing literature report: the smallest
+//! angle over all faces and the mean over faces of each face's smallest angle (the mean of
+//! *all* angles is 60° for any triangle mesh, so it says nothing); a face is *flipped* when
+//! its normal points against the input surface's normal at the closest input point of its
+//! centroid, *degenerate* when its smallest angle is below [`DEGENERATE_DEGREES`] or its area
+//! vanishes.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::resample::{face_normal, Projector};
+use crate::mesh::Mesh;
+
+/// Faces with a smaller angle than this (degrees) count as degenerate.
+pub const DEGENERATE_DEGREES: f64 = 0.5;
+
+/// Quality statistics of a remeshed surface (JSON keys of `subwave remesh --json`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Quality {
+    /// Smallest angle of any face (degrees).
+    pub min_angle: f64,
+    /// Mean over faces of each face's smallest angle (degrees).
+    pub mean_angle: f64,
+    /// Faces whose normal opposes the input's at the closest input point.
+    pub flipped: usize,
+    /// Faces with an angle below [`DEGENERATE_DEGREES`] or zero area.
+    pub degenerate: usize,
+}
+
+/// The smallest corner angle of a polygon (degrees); 0 for a zero-length edge.
+pub fn min_angle(fv: &[u32], pos: &[DVec3]) -> f64 {
+    let n = fv.len();
+    let mut m = 180.0f64;
+    for i in 0..n {
+        let p = pos[fv[i] as usize];
+        let a = pos[fv[(i + 1) % n] as usize] - p;
+        let b = pos[fv[(i + n - 1) % n] as usize] - p;
+        let (la, lb) = (a.length(), b.length());
+        if la <= 0.0 || lb <= 0.0 {
+            return 0.0;
+        }
+        let c = (a.dot(b) / (la * lb)).clamp(-1.0, 1.0);
+        m = m.min(c.acos().to_degrees());
+    }
+    m
+}
+
+/// The quality of `mesh` against the input surface behind `proj`.
+pub fn measure(mesh: &Mesh, proj: &Projector) -> Quality {
+    let pos = &mesh.positions;
+    let per_face: Vec<(f64, bool, bool)> = (0..mesh.num_faces())
+        .into_par_iter()
+        .map(|f| {
+            let fv = mesh.face(f);
+            let a = min_angle(fv, pos);
+            let n = face_normal(fv, pos);
+            let c = fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64;
+            let (_, tri) = proj.closest(c);
+            let flipped = n.dot(proj.normals[tri as usize]) < 0.0;
+            let degenerate = a < DEGENERATE_DEGREES || n.length_squared() == 0.0;
+            (a, flipped, degenerate)
+        })
+        .collect();
+    let nf = per_face.len().max(1) as f64;
+    Quality {
+        min_angle: per_face.iter().map(|x| x.0).fold(180.0, f64::min),
+        mean_angle: per_face.iter().map(|x| x.0).sum::<f64>() / nf,
+        flipped: per_face.iter().filter(|x| x.1).count(),
+        degenerate: per_face.iter().filter(|x| x.2).count(),
+    }
+}

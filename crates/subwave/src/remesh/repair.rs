@@ -1,0 +1,273 @@
+//! Input preparation for remeshing: triangulation, removal of unreferenced vertices and
+//! degenerate faces, and the repair of non-manifold edges and vertices.
+//!
+//! Maret 2003 §2.3 (Algorithm 4) defines the 2-manifold the subdivision and wavelet layers
+//! need: every edge on one or two consistently oriented faces, the faces around every vertex
+//! one fan. A remesher (Lee et al. 1998, MAPS §2) starts from such a mesh. [`repair`] makes one
+//! by *cutting*: faces are glued to each other only across edges that are on exactly two
+//! faces, after orienting each glued component consistently (breadth-first, flipping faces
+//! as Maret §2.3.1's orientation test requires); every vertex is then split into one copy per
+//! fan of the faces glued around it. Non-manifold edges thus become boundary edges of each
+//! sheet, pinched vertices become several vertices, and non-orientable gluings are cut.
+
+use std::collections::VecDeque;
+
+use glam::DVec3;
+
+use crate::mesh::Mesh;
+use crate::topology::{Topology, UnionFind};
+use crate::validate::require_manifold;
+use crate::{MeshError, Result};
+
+/// What [`prepare`] changed in the input.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct RepairReport {
+    /// Faces removed because they repeat a vertex or have (nearly) zero area.
+    pub degenerate_faces: usize,
+    /// Vertices no face used (dropped).
+    pub unreferenced_vertices: usize,
+    /// Non-manifold edges cut (only with repair).
+    pub non_manifold_edges: usize,
+    /// Non-manifold vertices split (only with repair).
+    pub non_manifold_vertices: usize,
+    /// Faces flipped to make orientations consistent (only with repair).
+    pub flipped_faces: usize,
+    /// Vertices added by splitting.
+    pub added_vertices: usize,
+}
+
+/// The triangles of `mesh` ready for remeshing: polygons fanned, degenerate triangles (a
+/// repeated vertex, or area below `1e-14 · diagonal²`) and unreferenced vertices removed and,
+/// if `repair`, non-manifold edges and vertices cut (see the module documentation).
+///
+/// Returns the positions, the triangles and the report.
+///
+/// # Errors
+/// [`MeshError`] variants of [`Mesh::check_indices`] for bad indices;
+/// [`MeshError::NonManifold`] naming the non-manifold edges and vertices (and
+/// [`MeshError::InconsistentOrientation`]) when `repair` is false and the input is not an
+/// oriented 2-manifold.
+pub fn prepare(mesh: &Mesh, repair: bool) -> Result<(Vec<DVec3>, Vec<[u32; 3]>, RepairReport)> {
+    check_indices_allow_repeats(mesh)?;
+    let mut report = RepairReport::default();
+    let diag = mesh.diagonal();
+    let min_area2 = (1e-14 * diag * diag).powi(2);
+    let (tris, _) = mesh.triangulate();
+    let mut kept = Vec::with_capacity(tris.len());
+    for t in tris {
+        let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+        let degenerate = t[0] == t[1]
+            || t[1] == t[2]
+            || t[0] == t[2]
+            || (b - a).cross(c - a).length_squared() * 0.25 <= min_area2;
+        if degenerate {
+            report.degenerate_faces += 1;
+        } else {
+            kept.push(t);
+        }
+    }
+    // Drop unreferenced vertices.
+    let mut map = vec![u32::MAX; mesh.positions.len()];
+    let mut positions = Vec::new();
+    let mut original = Vec::new();
+    for t in &mut kept {
+        for i in t.iter_mut() {
+            if map[*i as usize] == u32::MAX {
+                map[*i as usize] = positions.len() as u32;
+                positions.push(mesh.positions[*i as usize]);
+                original.push(*i);
+            }
+            *i = map[*i as usize];
+        }
+    }
+    report.unreferenced_vertices = mesh.positions.len() - positions.len();
+    let m = Mesh::from_triangles(positions, &kept);
+    let topo = Topology::build(&m);
+    let nm_edges = topo.non_manifold_edges();
+    let nm_vertices = topo.non_manifold_vertices();
+    if !repair {
+        if !nm_edges.is_empty() || !nm_vertices.is_empty() {
+            return Err(MeshError::NonManifold {
+                // Named in the input's numbering.
+                edges: nm_edges
+                    .iter()
+                    .map(|&e| topo.edge_vertices[e as usize].map(|v| original[v as usize]))
+                    .collect(),
+                vertices: nm_vertices.iter().map(|&v| original[v as usize]).collect(),
+            }
+            .into());
+        }
+        require_manifold(&topo)?;
+        let Mesh { positions, .. } = m;
+        return Ok((positions, kept, report));
+    }
+    report.non_manifold_edges = nm_edges.len();
+    report.non_manifold_vertices = nm_vertices.len();
+    let (positions, tris, flipped, added) = cut_to_manifold(&m.positions, &kept, &topo);
+    report.flipped_faces = flipped;
+    report.added_vertices = added;
+    Ok((positions, tris, report))
+}
+
+/// Like [`Mesh::check_indices`] but lets faces repeat a vertex (they are removed as
+/// degenerate).
+fn check_indices_allow_repeats(mesh: &Mesh) -> Result<()> {
+    match mesh.check_indices() {
+        Err(MeshError::RepeatedVertex { .. }) => {
+            let n = mesh.positions.len();
+            for (f, fv) in mesh.faces().enumerate() {
+                if fv.len() < 3 {
+                    return Err(MeshError::FaceTooSmall {
+                        face: f as u32,
+                        arity: fv.len(),
+                    }
+                    .into());
+                }
+                if let Some(&index) = fv.iter().find(|&&i| i as usize >= n) {
+                    return Err(MeshError::IndexOutOfRange {
+                        face: f as u32,
+                        index,
+                        vertices: n,
+                    }
+                    .into());
+                }
+            }
+            if let Some(v) = mesh.positions.iter().position(|p| !p.is_finite()) {
+                return Err(MeshError::NonFinite { vertex: v as u32 }.into());
+            }
+            Ok(())
+        }
+        r => Ok(r?),
+    }
+}
+
+/// Orients each component through its two-face edges, cuts every other edge, and splits
+/// vertices per fan. Returns positions, triangles, flipped face count, added vertex count.
+fn cut_to_manifold(
+    positions: &[DVec3],
+    tris: &[[u32; 3]],
+    topo: &Topology,
+) -> (Vec<DVec3>, Vec<[u32; 3]>, usize, usize) {
+    let nf = tris.len();
+    let mut out: Vec<[u32; 3]> = tris.to_vec();
+    let mut visited = vec![false; nf];
+    let mut flipped = 0;
+    // Orientation by breadth-first propagation across two-face edges.
+    let directed = |t: &[u32; 3], a: u32, b: u32| (0..3).any(|i| t[i] == a && t[(i + 1) % 3] == b);
+    let mut queue = VecDeque::new();
+    for seed in 0..nf {
+        if visited[seed] {
+            continue;
+        }
+        visited[seed] = true;
+        queue.push_back(seed);
+        while let Some(f) = queue.pop_front() {
+            for &e in topo.face_edges(f) {
+                let ef = topo.edge_faces(e as usize);
+                if ef.len() != 2 {
+                    continue;
+                }
+                let g = if ef[0] as usize == f { ef[1] } else { ef[0] } as usize;
+                if g == f || visited[g] {
+                    continue;
+                }
+                visited[g] = true;
+                let [a, b] = topo.edge_vertices[e as usize];
+                // Consistent: f and g traverse the edge in opposite directions.
+                let f_ab = directed(&out[f], a, b);
+                let g_ab = directed(&out[g], a, b);
+                if f_ab == g_ab {
+                    out[g].swap(1, 2);
+                    flipped += 1;
+                }
+                queue.push_back(g);
+            }
+        }
+    }
+    // Glue corners across consistent two-face edges.
+    let mut uf = UnionFind::new(3 * nf);
+    let corner = |f: usize, v: u32, out: &[[u32; 3]]| -> u32 {
+        let i = out[f].iter().position(|&x| x == v).expect("vertex of face");
+        (3 * f + i) as u32
+    };
+    for e in 0..topo.num_edges() {
+        let ef = topo.edge_faces(e);
+        if ef.len() != 2 || ef[0] == ef[1] {
+            continue;
+        }
+        let (f, g) = (ef[0] as usize, ef[1] as usize);
+        let [a, b] = topo.edge_vertices[e];
+        if directed(&out[f], a, b) == directed(&out[g], a, b) {
+            continue; // non-orientable gluing: cut
+        }
+        uf.union(corner(f, a, &out), corner(g, a, &out));
+        uf.union(corner(f, b, &out), corner(g, b, &out));
+    }
+    // One new vertex per (original vertex, corner class).
+    let mut class_vertex = vec![u32::MAX; 3 * nf];
+    let mut new_positions = Vec::with_capacity(positions.len());
+    let mut used_original = vec![false; positions.len()];
+    let mut added = 0;
+    let mut result = vec![[0u32; 3]; nf];
+    for f in 0..nf {
+        for i in 0..3 {
+            let root = uf.find((3 * f + i) as u32) as usize;
+            if class_vertex[root] == u32::MAX {
+                let v = out[f][i] as usize;
+                class_vertex[root] = new_positions.len() as u32;
+                new_positions.push(positions[v]);
+                if used_original[v] {
+                    added += 1;
+                }
+                used_original[v] = true;
+            }
+            result[f][i] = class_vertex[root];
+        }
+    }
+    (new_positions, result, flipped, added)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::generate;
+
+    #[test]
+    fn bowtie_is_rejected_then_split() {
+        let m = generate::bowtie();
+        let err = prepare(&m, false).unwrap_err().to_string();
+        assert!(err.contains("non-manifold"), "{err}");
+        let (p, t, r) = prepare(&m, true).unwrap();
+        let fixed = Mesh::from_triangles(p, &t);
+        let topo = Topology::build(&fixed);
+        assert!(require_manifold(&topo).is_ok());
+        assert_eq!(r.added_vertices, 1);
+        assert_eq!(r.non_manifold_vertices, 1);
+    }
+
+    #[test]
+    fn fin_edge_is_cut() {
+        let m = generate::fin();
+        let err = prepare(&m, false).unwrap_err().to_string();
+        assert!(err.contains("edge"), "{err}");
+        let (p, t, r) = prepare(&m, true).unwrap();
+        let topo = Topology::build(&Mesh::from_triangles(p, &t));
+        assert!(require_manifold(&topo).is_ok());
+        assert_eq!(r.non_manifold_edges, 1);
+    }
+
+    #[test]
+    fn degenerate_faces_are_dropped() {
+        let mut m = generate::icosahedron();
+        let n = m.num_faces();
+        m.positions.push(m.positions[0]);
+        let extra = (m.positions.len() - 1) as u32;
+        m.push_face(&[0, 1, 0]);
+        m.push_face(&[0, extra, 1]);
+        let (p, t, r) = prepare(&m, false).unwrap();
+        assert_eq!(t.len(), n);
+        assert_eq!(r.degenerate_faces, 2);
+        assert_eq!(r.unreferenced_vertices, 1);
+        assert_eq!(p.len(), 12);
+    }
+}

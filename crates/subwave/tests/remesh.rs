@@ -1,0 +1,206 @@
+//! Remeshing to subdivision connectivity: generated meshes of several topologies, repair of
+//! non-manifold input, the ordering contract (detected by `Hierarchy::detect`), and the
+//! corpus when `../shared/data/meshes` exists.
+
+use std::path::PathBuf;
+
+use subwave::distance::distance;
+use subwave::generate;
+use subwave::hierarchy::Hierarchy;
+use subwave::remesh::{remesh, Method, MethodChoice, RemeshOptions, Remeshed};
+use subwave::{DVec3, Mesh, MeshError, Topology};
+
+fn topo_summary(m: &Mesh) -> (Option<u64>, usize, usize) {
+    let t = Topology::build(m);
+    let (_, loops) = t.boundary_loops();
+    let (_, comps) = t.face_components();
+    (t.genus(), loops, comps)
+}
+
+fn opts(levels: u32, base_faces: usize) -> RemeshOptions {
+    RemeshOptions {
+        levels,
+        base_faces,
+        ..RemeshOptions::default()
+    }
+}
+
+/// Checks the invariants every remesh must satisfy, returns the PSNR against the input.
+fn check(input: &Mesh, r: &Remeshed, levels: u32) -> f64 {
+    let m = &r.mesh;
+    assert_eq!(m.num_faces(), r.base.num_faces() * 4usize.pow(levels));
+    // Same topology as the input (genus, boundary loops, components).
+    assert_eq!(topo_summary(m), topo_summary(input), "topology changed");
+    assert_eq!(topo_summary(&r.base), topo_summary(input), "base topology");
+    // Subdivision connectivity in contract order: detection finds it with the identity.
+    if levels > 0 {
+        let (h, ren) = Hierarchy::detect(m, Some(levels)).expect("detectable hierarchy");
+        assert_eq!(h.levels(), levels as usize);
+        assert!(ren.vertices.iter().enumerate().all(|(i, &v)| i as u32 == v));
+    }
+    assert!(m.positions.iter().all(|p| p.is_finite()));
+    assert!(
+        r.quality.flipped * 20 <= m.num_faces(),
+        "flipped faces: {:?}",
+        r.quality
+    );
+    let d = distance(input, m, 20_000).unwrap();
+    d.psnr
+}
+
+#[test]
+fn sphere_remeshes_onto_the_surface() {
+    let input = generate::icosphere(4);
+    let r = remesh(&input, &opts(3, 40)).unwrap();
+    assert_eq!(r.method, Method::Maps);
+    assert!(r.base.num_faces() <= 60, "{}", r.base.num_faces());
+    let psnr = check(&input, &r, 3);
+    assert!(psnr > 60.0, "psnr {psnr}");
+    // Every vertex on the input surface (up to the chordal error of the icosphere).
+    let worst = r
+        .mesh
+        .positions
+        .iter()
+        .map(|p| (p.length() - 1.0).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 0.01, "{worst}");
+    assert!(r.quality.min_angle > 1.0, "{:?}", r.quality);
+}
+
+#[test]
+fn torus_keeps_its_genus() {
+    let input = generate::torus(1.0, 0.35, 48, 24, true);
+    let r = remesh(&input, &opts(2, 60)).unwrap();
+    let psnr = check(&input, &r, 2);
+    assert!(psnr > 50.0, "psnr {psnr}");
+}
+
+#[test]
+fn grid_keeps_its_boundary_on_the_input_boundary() {
+    let input = generate::grid(20, 14, true);
+    let r = remesh(&input, &opts(2, 16)).unwrap();
+    check(&input, &r, 2);
+    // The plane stays a plane and the boundary stays on the rectangle.
+    let t = Topology::build(&r.mesh);
+    for e in 0..t.num_edges() {
+        if t.is_boundary_edge(e) {
+            for v in t.edge_vertices[e] {
+                let p = r.mesh.positions[v as usize];
+                let on = p.x.abs() < 1e-9
+                    || (p.x - 20.0).abs() < 1e-9
+                    || p.y.abs() < 1e-9
+                    || (p.y - 14.0).abs() < 1e-9;
+                assert!(on, "boundary vertex {v} at {p} left the input boundary");
+            }
+        }
+    }
+    assert!(r.mesh.positions.iter().all(|p| p.z.abs() < 1e-12));
+}
+
+#[test]
+fn two_components_are_remeshed_independently() {
+    let a = generate::icosphere(3);
+    let mut b = generate::torus(1.0, 0.3, 32, 16, true);
+    for p in &mut b.positions {
+        *p += DVec3::new(4.0, 0.0, 0.0);
+    }
+    let n = a.positions.len() as u32;
+    let mut input = a.clone();
+    input.positions.extend(b.positions.iter().copied());
+    for f in b.faces() {
+        let g: Vec<u32> = f.iter().map(|&i| i + n).collect();
+        input.push_face(&g);
+    }
+    let r = remesh(&input, &opts(2, 80)).unwrap();
+    check(&input, &r, 2);
+}
+
+#[test]
+fn quads_build_a_catmull_clark_hierarchy() {
+    let input = generate::icosphere(3);
+    let o = RemeshOptions {
+        quads: true,
+        ..opts(2, 30)
+    };
+    let r = remesh(&input, &o).unwrap();
+    assert!(r.mesh.is_quad_mesh());
+    assert_eq!(r.base.num_faces() * 16, r.mesh.num_faces());
+    let (h, ren) = Hierarchy::detect(&r.mesh, Some(2)).expect("quad hierarchy");
+    assert_eq!(h.levels(), 2);
+    assert!(ren.vertices.iter().enumerate().all(|(i, &v)| i as u32 == v));
+    assert_eq!(topo_summary(&r.mesh), topo_summary(&input));
+}
+
+#[test]
+fn non_manifold_input_is_an_error_naming_elements_unless_repaired() {
+    // Two spheres glued at one vertex plus a fin edge: a pinched vertex and a shared edge.
+    let bow = generate::bowtie();
+    let err = remesh(&bow, &opts(1, 2)).unwrap_err();
+    match err {
+        subwave::Error::Mesh(MeshError::NonManifold { vertices, .. }) => {
+            assert_eq!(vertices, vec![0])
+        }
+        e => panic!("unexpected error {e}"),
+    }
+    let fin = generate::fin();
+    let err = remesh(&fin, &opts(1, 3)).unwrap_err().to_string();
+    assert!(err.contains("0-1") && err.contains("--repair"), "{err}");
+    for m in [bow, fin] {
+        let o = RemeshOptions {
+            repair: true,
+            ..opts(2, 3)
+        };
+        let r = remesh(&m, &o).unwrap();
+        assert!(r.repair.added_vertices > 0);
+        let t = Topology::build(&r.mesh);
+        assert!(t.is_manifold());
+        Hierarchy::detect(&r.mesh, Some(2)).unwrap();
+    }
+}
+
+#[test]
+fn shrink_wrap_runs_on_genus_zero() {
+    let input = generate::icosphere(4);
+    let o = RemeshOptions {
+        method: MethodChoice::ShrinkWrap,
+        ..opts(2, 40)
+    };
+    let r = remesh(&input, &o).unwrap();
+    assert_eq!(r.method, Method::ShrinkWrap);
+    let psnr = check(&input, &r, 2);
+    assert!(psnr > 50.0, "{psnr}");
+}
+
+fn corpus(name: &str) -> Option<Mesh> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/meshes")
+        .join(name);
+    if !p.exists() {
+        eprintln!("skipping: {} not found", p.display());
+        return None;
+    }
+    Some(subwave::io::read_mesh(&p, None).unwrap())
+}
+
+#[test]
+fn corpus_small_meshes_remesh() {
+    for (name, repair) in [("woody.obj", false), ("spot.obj", false), ("cow.obj", true)] {
+        let Some(input) = corpus(name) else { return };
+        let o = RemeshOptions {
+            repair,
+            ..opts(2, 200)
+        };
+        let r = remesh(&input, &o).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let d = distance(&input, &r.mesh, 20_000).unwrap();
+        eprintln!(
+            "{name}: method {} base {} psnr {:.1} min angle {:.2} flipped {} degenerate {}",
+            r.method.name(),
+            r.base.num_faces(),
+            d.psnr,
+            r.quality.min_angle,
+            r.quality.flipped,
+            r.quality.degenerate
+        );
+        assert!(d.psnr > 40.0, "{name}: {}", d.psnr);
+    }
+}
