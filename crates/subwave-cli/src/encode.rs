@@ -9,6 +9,7 @@ use subwave::codec::progressive::{encode, inspect, EncodeOptions, Layout, Wavele
 use subwave::codec::quantize::ComponentMode;
 use subwave::hierarchy::Hierarchy;
 use subwave::io::read_mesh;
+use subwave::remesh::{remesh, RemeshOptions};
 use subwave::subdivision::refine::Split;
 use subwave::wavelet::triangle::DetailFrame;
 
@@ -57,6 +58,11 @@ pub enum ComponentsArg {
     Independent,
 }
 
+/// Levels of the remesh of an irregular input, unless --levels says otherwise.
+const DEFAULT_LEVELS: u32 = 4;
+/// Base faces of the remesh of an irregular input, unless --base-faces says otherwise.
+const DEFAULT_BASE_FACES: u32 = 400;
+
 /// Runs `subwave encode`.
 pub fn run(args: &EncodeArgs) -> Result<()> {
     let name = print::path(&args.mesh);
@@ -64,16 +70,34 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     mesh.remove_unreferenced();
     let input_vertices = mesh.num_vertices();
     let t0 = Instant::now();
-    let (h, _) = match Hierarchy::detect(&mesh, args.levels) {
-        Ok(x) => x,
-        Err(subwave::Error::Hierarchy(msg)) => bail!(
-            "{name} is not semi-regular ({msg}); `subwave encode` takes meshes with subdivision connectivity (e.g. the output of `subwave subdivide`) until the remesher is merged"
-        ),
-        Err(e) => bail!("{name}: {e}"),
+    // A semi-regular mesh is used as it is; anything else is remeshed first.
+    let detected = if mesh.is_triangle_mesh() || mesh.is_quad_mesh() {
+        Hierarchy::detect(&mesh, args.levels).ok()
+    } else {
+        None
     };
-    if args.base_faces.is_some() {
-        tracing::warn!("--base-faces only applies to remeshed (irregular) input; the detected base mesh is used");
-    }
+    let (h, remeshed) = match detected {
+        Some((h, _)) => {
+            if args.base_faces.is_some() {
+                tracing::warn!("--base-faces only applies to remeshed (irregular) input; the detected base mesh is used");
+            }
+            (h, false)
+        }
+        None => {
+            let opts = RemeshOptions {
+                levels: args.levels.unwrap_or(DEFAULT_LEVELS),
+                base_faces: args.base_faces.unwrap_or(DEFAULT_BASE_FACES) as usize,
+                quads: matches!(args.wavelet, Some(WaveletArg::Linear | WaveletArg::Cubic)),
+                repair: true,
+                ..Default::default()
+            };
+            let r = remesh(&mesh, &opts).map_err(|e| anyhow::anyhow!("{name}: remeshing: {e}"))?;
+            for w in &r.warnings {
+                tracing::warn!("{name}: {w}");
+            }
+            (r.hierarchy, true)
+        }
+    };
     let mut opts = EncodeOptions::for_hierarchy(&h);
     if let Some(w) = args.wavelet {
         opts.wavelet = match w {
@@ -129,7 +153,8 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     let mut out = stdout.lock();
     writeln!(
         out,
-        "{name}: {} levels over {} base vertices / {} faces -> {} vertices; {} wavelet{}{}, {} frames, {} bit planes, {} layout{}",
+        "{name}: {}{} levels over {} base vertices / {} faces -> {} vertices; {} wavelet{}{}, {} frames, {} bit planes, {} layout{}",
+        if remeshed { "remeshed, " } else { "" },
         h.levels(),
         info.base_vertices,
         info.base_faces,
