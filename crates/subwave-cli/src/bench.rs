@@ -65,3 +65,46 @@ pub fn subdivide(args: &BenchSubdivideArgs) -> Result<()> {
     out.flush()?;
     Ok(())
 }
+
+/// Runs `subwave bench decode`: the median of full decodes (no file output).
+pub fn decode(args: &crate::BenchDecodeArgs) -> Result<()> {
+    use subwave::codec::progressive::{decode, DecodeOptions};
+    let name = print::path(&args.stream);
+    let bytes = std::fs::read(&args.stream).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let mut times = Vec::with_capacity(args.runs as usize);
+    let mut vertices = 0;
+    let mut faces = 0;
+    for _ in 0..args.runs {
+        let t = std::time::Instant::now();
+        let d = decode(&bytes, &DecodeOptions::default())
+            .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+        vertices = d.mesh.num_vertices();
+        faces = d.mesh.num_faces();
+    }
+    times.sort_by(f64::total_cmp);
+    let median = times[times.len() / 2];
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    if args.json {
+        let v = serde_json::json!({
+            "decode_ms": median,
+            "vertices": vertices,
+            "faces": faces,
+            "bytes": bytes.len(),
+            "runs": args.runs,
+            "min_ms": times[0],
+        });
+        writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
+    } else {
+        writeln!(
+            out,
+            "{name}: full decode of {} bytes -> {vertices} vertices, {faces} faces: median {median:.2} ms (min {:.2} ms, {} runs)",
+            bytes.len(),
+            times[0],
+            args.runs
+        )?;
+    }
+    out.flush()?;
+    Ok(())
+}

@@ -12,8 +12,10 @@ use clap::{Parser, Subcommand};
 
 mod bench;
 mod convert;
+mod decode;
 mod demo;
 mod distance;
+mod encode;
 mod info;
 mod print;
 mod remesh;
@@ -67,6 +69,97 @@ enum Command {
     /// Benchmarks without file output (medians of several runs).
     #[command(subcommand)]
     Bench(BenchCommand),
+    /// Encode a semi-regular mesh into a progressive `.swv` stream (wavelet + SPIHT over the
+    /// edge-offspring forest; embedded or per-tree layout; lossless integer mode).
+    Encode(EncodeArgs),
+    /// Decode a `.swv` stream, or a prefix of it (--bytes, --bpv), or some of its trees, into
+    /// a mesh.
+    Decode(DecodeArgs),
+}
+
+/// Arguments of `subwave encode`.
+#[derive(Debug, clap::Args)]
+pub struct EncodeArgs {
+    /// The mesh: semi-regular (1-to-4 triangle or Catmull-Clark quad splits, any vertex
+    /// order).
+    #[arg(value_name = "MESH")]
+    pub mesh: PathBuf,
+    /// The output stream.
+    #[arg(short, long, value_name = "OUT.swv")]
+    pub output: PathBuf,
+    /// The input format, if the extension does not tell it.
+    #[arg(short, long, value_name = "F", value_parser = parse_format)]
+    pub format: Option<Format>,
+    /// Subdivision levels to detect (default: as many as the mesh has).
+    #[arg(long, value_name = "L", value_parser = clap::value_parser!(u32).range(1..=12))]
+    pub levels: Option<u32>,
+    /// Base faces of the remesher (irregular input only).
+    #[arg(long, value_name = "N")]
+    pub base_faces: Option<u32>,
+    /// The wavelet (default: butterfly on triangle meshes, cubic on quad meshes).
+    #[arg(long, value_enum)]
+    pub wavelet: Option<encode::WaveletArg>,
+    /// Lifted midpoint/butterfly (always on with --lossless).
+    #[arg(long)]
+    pub lifted: bool,
+    /// Bit planes of the coefficient quantization (eq. 4.8; default 16), or with --lossless
+    /// the bits of the position grid (default 12).
+    #[arg(long, value_name = "B", value_parser = clap::value_parser!(u32).range(1..=30))]
+    pub bits: Option<u32>,
+    /// Detail coordinates (triangle wavelets; default local).
+    #[arg(long, value_enum)]
+    pub frames: Option<encode::FramesArg>,
+    /// Quantization steps of the x/y/z components.
+    #[arg(long, value_enum, default_value = "aligned")]
+    pub components: encode::ComponentsArg,
+    /// Chunk layout.
+    #[arg(long, value_enum, default_value = "embedded")]
+    pub layout: encode::LayoutArg,
+    /// Lossless mode: integer wavelet on the position grid; decoding the whole stream gives
+    /// the quantized positions bit for bit.
+    #[arg(long)]
+    pub lossless: bool,
+    /// Code every SPIHT decision as a raw bit (no context modelling).
+    #[arg(long)]
+    pub no_contexts: bool,
+}
+
+/// Arguments of `subwave decode`.
+#[derive(Debug, clap::Args)]
+pub struct DecodeArgs {
+    /// The stream.
+    #[arg(value_name = "IN.swv")]
+    pub input: PathBuf,
+    /// The output mesh (obj, ply, glb, off, stl).
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
+    /// The output format, if the extension does not tell it.
+    #[arg(long, value_name = "F", value_parser = parse_format)]
+    pub to: Option<Format>,
+    /// Decode only the first N bytes of the stream.
+    #[arg(long, value_name = "N")]
+    pub bytes: Option<u64>,
+    /// Decode only X bits per input vertex (the input vertex count is in the header).
+    #[arg(long, value_name = "X")]
+    pub bpv: Option<f64>,
+    /// Trees layout: decode only these trees (e.g. 0,3,7-12).
+    #[arg(long, value_name = "LIST")]
+    pub trees: Option<String>,
+}
+
+/// Arguments of `subwave bench decode`.
+#[derive(Debug, clap::Args)]
+pub struct BenchDecodeArgs {
+    /// The stream.
+    #[arg(value_name = "IN.swv")]
+    pub stream: PathBuf,
+    /// Runs per median.
+    #[arg(long, value_name = "K", default_value_t = 11,
+          value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub runs: u32,
+    /// Print JSON (keys decode_ms, vertices, faces, bytes, runs, min_ms).
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of `subwave distance`.
@@ -139,6 +232,8 @@ pub struct StabilityArgs {
 enum BenchCommand {
     /// Plain subdivision: topology, positions, total, cached re-evaluation, peak memory.
     Subdivide(BenchSubdivideArgs),
+    /// Full decode of a `.swv` stream (median time, no file output).
+    Decode(BenchDecodeArgs),
     /// Remeshing to subdivision connectivity: total and per-stage times.
     Remesh(remesh::BenchRemeshArgs),
 }
@@ -332,6 +427,9 @@ fn main() -> ExitCode {
         Command::Wavelet(args) => wavelet::run(&args),
         Command::Stability(args) => stability::run(&args),
         Command::Bench(BenchCommand::Subdivide(args)) => bench::subdivide(&args),
+        Command::Bench(BenchCommand::Decode(args)) => bench::decode(&args),
+        Command::Encode(args) => encode::run(&args),
+        Command::Decode(args) => decode::run(&args),
         Command::Remesh(args) => remesh::run(&args),
         Command::Bench(BenchCommand::Remesh(args)) => remesh::bench(&args),
     };

@@ -118,7 +118,10 @@ pub struct Header {
     /// Top bit plane per component (−1: all zero).
     pub top: [i8; 3],
     /// Reserved (0).
-    pub reserved2: [u8; 5],
+    pub reserved2: u8,
+    /// Vertices of the mesh the stream stands for (the input before remeshing), for rates
+    /// in bits per input vertex.
+    pub input_vertices: u32,
     /// Bounding box of the encoded finest positions.
     pub bbox: [DVec3; 2],
     /// Coefficient steps per component (eq. 4.8).
@@ -190,7 +193,8 @@ impl Header {
             self.reserved,
         ]);
         out.extend(self.top.iter().map(|&t| t as u8));
-        out.extend_from_slice(&self.reserved2);
+        out.push(self.reserved2);
+        out.extend_from_slice(&self.input_vertices.to_le_bytes());
         for p in self.bbox {
             for c in 0..3 {
                 put_f64(out, p[c]);
@@ -230,7 +234,8 @@ impl Header {
             base_bits: b[6],
             reserved: b[7],
             top: [b[8] as i8, b[9] as i8, b[10] as i8],
-            reserved2: [b[11], b[12], b[13], b[14], b[15]],
+            reserved2: b[11],
+            input_vertices: u32::from_le_bytes([b[12], b[13], b[14], b[15]]),
             bbox,
             steps,
             grid_origin,
@@ -512,7 +517,8 @@ mod tests {
             base_bits: 16,
             reserved: 0,
             top: [11, 9, -1],
-            reserved2: [0; 5],
+            reserved2: 0,
+            input_vertices: 42,
             bbox: [DVec3::ZERO, DVec3::ONE],
             steps: [0.5, 0.25, 1.0],
             grid_origin: DVec3::ZERO,

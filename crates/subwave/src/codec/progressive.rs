@@ -175,6 +175,9 @@ pub struct EncodeOptions {
     pub layout: Layout,
     /// Lossless (integer) mode.
     pub lossless: bool,
+    /// Vertices of the input the hierarchy stands for (recorded in the header for rates in
+    /// bits per input vertex); `None`: the hierarchy's finest vertex count.
+    pub input_vertices: Option<u32>,
 }
 
 impl Default for EncodeOptions {
@@ -189,6 +192,7 @@ impl Default for EncodeOptions {
             contexts: true,
             layout: Layout::Embedded,
             lossless: false,
+            input_vertices: None,
         }
     }
 }
@@ -270,6 +274,12 @@ pub struct StreamInfo {
     pub base_bytes: usize,
     /// Total stream bytes.
     pub total_bytes: u64,
+    /// Vertices of the input mesh the stream stands for.
+    pub input_vertices: u32,
+    /// Vertices of the decoded (finest) mesh.
+    pub vertices: u64,
+    /// Faces of the decoded (finest) mesh.
+    pub faces: u64,
     /// Bounding box of the encoded positions.
     pub bbox: [DVec3; 2],
     /// The chunk index.
@@ -558,7 +568,10 @@ pub fn encode(h: &Hierarchy, opts: &EncodeOptions) -> Result<Vec<u8>> {
         base_bits: opts.base_bits as u8,
         reserved: 0,
         top: mags.top.map(|t| t as i8),
-        reserved2: [0; 5],
+        reserved2: 0,
+        input_vertices: opts
+            .input_vertices
+            .unwrap_or(h.positions.len().min(u32::MAX as usize) as u32),
         bbox: bb,
         steps,
         grid_origin: grid.origin,
@@ -804,9 +817,50 @@ pub fn inspect(bytes: &[u8]) -> Result<StreamInfo> {
         header_bytes: p.c.header_len,
         base_bytes: p.c.chunks[0].len as usize,
         total_bytes: p.c.total_len(),
+        input_vertices: h.input_vertices,
+        vertices: fine_vertices(h, p.split),
+        faces: fine_faces(h, p.split),
         bbox: h.bbox,
         chunks: p.c.chunks.clone(),
     })
+}
+
+/// Finest faces of a stream's hierarchy.
+fn fine_faces(h: &Header, split: Split) -> u64 {
+    let l = h.levels as u32;
+    match split {
+        Split::Polygons if l > 0 => h.base_corners as u64 * 4u64.pow(l - 1),
+        _ => h.base_faces as u64 * 4u64.pow(l),
+    }
+}
+
+/// Finest vertices of a stream's hierarchy, by Euler's formula per level (`V' = V + E + F`
+/// for polygon splits, `V + E` for triangles), with `E` from the base's corners assuming a
+/// closed manifold (`2E = corners`; an open mesh has a few more edges, so this is a lower
+/// bound there).
+fn fine_vertices(h: &Header, split: Split) -> u64 {
+    let (mut v, mut e, mut f, mut c) = (
+        h.base_vertices as u64,
+        h.base_corners as u64 / 2,
+        h.base_faces as u64,
+        h.base_corners as u64,
+    );
+    for _ in 0..h.levels {
+        match split {
+            Split::Triangles => {
+                let v2 = v + e;
+                let e2 = 2 * e + 3 * f;
+                (v, e, f, c) = (v2, e2, 4 * f, 12 * f);
+            }
+            _ => {
+                let v2 = v + e + f;
+                let e2 = 2 * e + c;
+                (v, e, f, c) = (v2, e2, c, 4 * c);
+            }
+        }
+    }
+    let _ = c;
+    v
 }
 
 /// The decoded base mesh, hierarchy and forest of a stream.

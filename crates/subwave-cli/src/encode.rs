@@ -1,0 +1,188 @@
+//! `subwave encode`: a semi-regular mesh into a progressive `.swv` stream.
+
+use std::io::Write;
+use std::time::Instant;
+
+use anyhow::{bail, Result};
+use clap::ValueEnum;
+use subwave::codec::progressive::{encode, inspect, EncodeOptions, Layout, Wavelet};
+use subwave::codec::quantize::ComponentMode;
+use subwave::hierarchy::Hierarchy;
+use subwave::io::read_mesh;
+use subwave::remesh::{remesh, RemeshOptions};
+use subwave::subdivision::refine::Split;
+use subwave::wavelet::triangle::DetailFrame;
+
+use crate::print;
+use crate::EncodeArgs;
+
+/// `--wavelet`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum WaveletArg {
+    /// Loop (PGC), triangle meshes.
+    Loop,
+    /// Modified butterfly, triangle meshes.
+    Butterfly,
+    /// Midpoint (linear), triangle meshes.
+    Midpoint,
+    /// Bertram's linear B-spline wavelet, quad meshes.
+    Linear,
+    /// Bertram's cubic B-spline wavelet, quad meshes.
+    Cubic,
+}
+
+/// `--frames`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum FramesArg {
+    /// Local (normal, tangent, bitangent) frames of the predicted surface.
+    Local,
+    /// Global x, y, z.
+    Global,
+}
+
+/// `--layout`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum LayoutArg {
+    /// One chunk per bit plane: any prefix decodes to the best mesh for its bytes.
+    Embedded,
+    /// One chunk per tree with per-plane marks (view-dependent streaming).
+    Trees,
+}
+
+/// `--components`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ComponentsArg {
+    /// One quantization step for x, y, z (least significant bits aligned).
+    Aligned,
+    /// One step per component (MPEG-4 AFX).
+    Independent,
+}
+
+/// Levels of the remesh of an irregular input, unless --levels says otherwise.
+const DEFAULT_LEVELS: u32 = 4;
+/// Base faces of the remesh of an irregular input, unless --base-faces says otherwise.
+const DEFAULT_BASE_FACES: u32 = 400;
+
+/// Runs `subwave encode`.
+pub fn run(args: &EncodeArgs) -> Result<()> {
+    let name = print::path(&args.mesh);
+    let mut mesh = read_mesh(&args.mesh, args.format)?;
+    mesh.remove_unreferenced();
+    let input_vertices = mesh.num_vertices();
+    let t0 = Instant::now();
+    // A semi-regular mesh is used as it is; anything else is remeshed first.
+    let detected = if mesh.is_triangle_mesh() || mesh.is_quad_mesh() {
+        Hierarchy::detect(&mesh, args.levels).ok()
+    } else {
+        None
+    };
+    let (h, remeshed) = match detected {
+        Some((h, _)) => {
+            if args.base_faces.is_some() {
+                tracing::warn!("--base-faces only applies to remeshed (irregular) input; the detected base mesh is used");
+            }
+            (h, false)
+        }
+        None => {
+            let opts = RemeshOptions {
+                levels: args.levels.unwrap_or(DEFAULT_LEVELS),
+                base_faces: args.base_faces.unwrap_or(DEFAULT_BASE_FACES) as usize,
+                quads: matches!(args.wavelet, Some(WaveletArg::Linear | WaveletArg::Cubic)),
+                repair: true,
+                ..Default::default()
+            };
+            let r = remesh(&mesh, &opts).map_err(|e| anyhow::anyhow!("{name}: remeshing: {e}"))?;
+            for w in &r.warnings {
+                tracing::warn!("{name}: {w}");
+            }
+            (r.hierarchy, true)
+        }
+    };
+    let mut opts = EncodeOptions::for_hierarchy(&h);
+    if let Some(w) = args.wavelet {
+        opts.wavelet = match w {
+            WaveletArg::Loop => Wavelet::Loop,
+            WaveletArg::Butterfly => Wavelet::Butterfly,
+            WaveletArg::Midpoint => Wavelet::Midpoint,
+            WaveletArg::Linear => Wavelet::Linear,
+            WaveletArg::Cubic => Wavelet::Cubic,
+        };
+    }
+    if opts.wavelet.is_quad() != (h.split == Split::Polygons) {
+        bail!(
+            "{name}: the {} wavelet does not fit this {} mesh (triangles: loop, butterfly, midpoint; quads: linear, cubic)",
+            opts.wavelet.name(),
+            if h.split == Split::Triangles { "triangle" } else { "quad" }
+        );
+    }
+    if let Some(f) = args.frames {
+        opts.frames = match f {
+            FramesArg::Local => DetailFrame::Local,
+            FramesArg::Global => DetailFrame::Global,
+        };
+    }
+    opts.components = match args.components {
+        ComponentsArg::Aligned => ComponentMode::Aligned,
+        ComponentsArg::Independent => ComponentMode::Independent,
+    };
+    opts.layout = match args.layout {
+        LayoutArg::Embedded => Layout::Embedded,
+        LayoutArg::Trees => Layout::Trees,
+    };
+    opts.lossless = args.lossless;
+    if args.lossless && opts.wavelet == Wavelet::Loop {
+        bail!("--lossless needs an integer wavelet: butterfly or midpoint (triangles), linear or cubic (quads)");
+    }
+    if args.lossless {
+        opts.lifted = true;
+    }
+    opts.lifted |= args.lifted;
+    opts.contexts = !args.no_contexts;
+    if let Some(b) = args.bits {
+        opts.bits = b;
+    } else if args.lossless {
+        opts.bits = 12;
+    }
+    opts.input_vertices = Some(input_vertices as u32);
+    let bytes = encode(&h, &opts).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let ms = t0.elapsed().as_secs_f64() * 1e3;
+    std::fs::write(&args.output, &bytes)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.output.display()))?;
+    let info = inspect(&bytes)?;
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    writeln!(
+        out,
+        "{name}: {}{} levels over {} base vertices / {} faces -> {} vertices; {} wavelet{}{}, {} frames, {} bit planes, {} layout{}",
+        if remeshed { "remeshed, " } else { "" },
+        h.levels(),
+        info.base_vertices,
+        info.base_faces,
+        h.positions.len(),
+        info.wavelet.name(),
+        if info.lifted { " (lifted)" } else { "" },
+        if info.lossless { ", lossless" } else { "" },
+        match info.frames {
+            DetailFrame::Local => "local",
+            DetailFrame::Global => "global",
+        },
+        info.planes,
+        match info.layout {
+            Layout::Embedded => "embedded",
+            Layout::Trees => "trees",
+        },
+        if info.contexts { "" } else { ", raw bits" },
+    )?;
+    writeln!(
+        out,
+        "wrote {}: {} bytes ({:.2} bits per input vertex; header {} B, base {} B), {:.0} ms",
+        args.output.display(),
+        bytes.len(),
+        8.0 * bytes.len() as f64 / input_vertices.max(1) as f64,
+        info.header_bytes,
+        info.base_bytes,
+        ms
+    )?;
+    out.flush()?;
+    Ok(())
+}
