@@ -31,7 +31,6 @@ pub mod resample;
 pub mod shrinkwrap;
 pub mod simplify;
 
-use std::collections::HashSet;
 use std::time::Instant;
 
 use glam::DVec3;
@@ -92,7 +91,9 @@ pub struct RemeshOptions {
     /// for Bertram et al.'s B-spline wavelets) instead of 1-to-4 triangle splits.
     pub quads: bool,
     /// Edges with a dihedral angle above this many degrees are features: kept on base edges so
-    /// creases stay sharp. `None`: no features (boundaries are always kept).
+    /// creases stay sharp, and boundary or crease vertices where the curve turns by more than
+    /// this angle are kept as base vertices. `None`: no features (boundaries are always kept
+    /// as boundaries).
     pub sharp_angle: Option<f64>,
     /// Cut non-manifold edges and split non-manifold vertices instead of failing.
     pub repair: bool,
@@ -209,7 +210,7 @@ pub fn remesh_with_progress(
         ));
     }
     let prepared = Mesh::from_triangles(pos.clone(), &tris);
-    let features: HashSet<(u32, u32)> = match opts.sharp_angle {
+    let features: simplify::PairSet = match opts.sharp_angle {
         Some(deg) => {
             let topo = Topology::build(&prepared);
             sharp_edges_by_angle(&prepared, &topo, deg)
@@ -220,16 +221,21 @@ pub fn remesh_with_progress(
                 })
                 .collect()
         }
-        None => HashSet::new(),
+        None => simplify::PairSet::default(),
     };
     timings.prepare_ms = ms(t);
     progress("prepare", 1.0);
 
     // 2. Simplify with parameter tracking.
     let t = Instant::now();
-    let s = simplify::simplify(&pos, &tris, &features, opts.base_faces, &mut |f| {
-        progress("simplify", f)
-    });
+    let s = simplify::simplify(
+        &pos,
+        &tris,
+        &features,
+        opts.base_faces,
+        opts.sharp_angle,
+        &mut |f| progress("simplify", f),
+    );
     let base_tri = Mesh::from_triangles(s.positions.clone(), &s.triangles);
     let proj = resample::Projector::new(&pos, &tris)?;
     timings.simplify_ms = ms(t);

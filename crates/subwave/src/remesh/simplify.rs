@@ -26,11 +26,36 @@
 #![allow(clippy::needless_range_loop)] // parallel arrays indexed by vertex and face
 
 use std::cmp::Ordering;
-use std::collections::{BinaryHeap, HashSet};
+use std::collections::BinaryHeap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 use glam::DVec3;
 
 use crate::topology::UnionFind;
+
+/// A multiplicative hasher for the integer-pair keys of the edge sets (FxHash's mixing).
+#[derive(Default, Clone, Copy)]
+pub struct PairHasher(u64);
+
+impl Hasher for PairHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u32(&mut self, x: u32) {
+        self.write_u64(x as u64);
+    }
+    fn write_u64(&mut self, x: u64) {
+        self.0 = (self.0.rotate_left(5) ^ x).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+}
+
+/// A hash set of vertex pairs with [`PairHasher`].
+pub type PairSet = std::collections::HashSet<(u32, u32), BuildHasherDefault<PairHasher>>;
 
 /// A point of the parameter domain: a triangle of the base mesh and barycentric
 /// coordinates in it (summing to 1).
@@ -54,7 +79,7 @@ pub struct Simplified {
     /// The parameter of each input vertex.
     pub params: Vec<Param>,
     /// Base edges (vertex pairs, sorted) that are boundary or feature edges.
-    pub chain_edges: HashSet<(u32, u32)>,
+    pub chain_edges: PairSet,
 }
 
 #[derive(Clone, Copy, Default)]
@@ -198,7 +223,7 @@ struct State<'a> {
     vfaces: Vec<Vec<u32>>,
     alive: Vec<bool>,
     quadric: Vec<Quadric>,
-    chain: HashSet<(u32, u32)>,
+    chain: PairSet,
     chain_deg: Vec<u8>,
     comp: Vec<u32>,
     comp_faces: Vec<usize>,
@@ -448,14 +473,16 @@ impl State<'_> {
 
 /// Simplifies the oriented manifold triangle mesh `(pos, tris)` to about `target` faces
 /// (see the module documentation). `chain_edges` are the input's feature edges (sorted
-/// vertex pairs); boundary edges are added to them. `progress` receives the fraction done.
+/// vertex pairs); boundary edges are added to them. Chain vertices where the chain turns by
+/// more than `corner_angle` degrees are kept. `progress` receives the fraction done.
 ///
 /// Preconditions: `tris` index `pos`, form an oriented 2-manifold without degenerate faces.
 pub fn simplify(
     pos: &[DVec3],
     tris: &[[u32; 3]],
-    chain_edges: &HashSet<(u32, u32)>,
+    chain_edges: &PairSet,
     target: usize,
+    corner_angle: Option<f64>,
     progress: &mut dyn FnMut(f64),
 ) -> Simplified {
     let nv = pos.len();
@@ -479,8 +506,8 @@ pub fn simplify(
     }
     let mut comp_faces = vec![0usize; ncomp];
     let mut comp_area = vec![0.0f64; ncomp];
-    let mut edge_count: std::collections::HashMap<(u32, u32), u32> =
-        std::collections::HashMap::with_capacity(3 * nf / 2 + 1);
+    let mut edge_count: std::collections::HashMap<(u32, u32), u32, BuildHasherDefault<PairHasher>> =
+        Default::default();
     let mut quadric = vec![Quadric::default(); nv];
     let mut vfaces: Vec<Vec<u32>> = vec![Vec::new(); nv];
     let mut total_area = 0.0;
@@ -503,7 +530,7 @@ pub fn simplify(
             *edge_count.entry(key(t[i], t[(i + 1) % 3])).or_default() += 1;
         }
     }
-    let mut chain: HashSet<(u32, u32)> = chain_edges.clone();
+    let mut chain: PairSet = chain_edges.clone();
     let mut comp_closed = vec![true; ncomp];
     for (&k, &n) in &edge_count {
         if n == 1 {
@@ -573,8 +600,12 @@ pub fn simplify(
     for v in 0..nv as u32 {
         st.recount_chain(v);
     }
-    // Chain vertices where the chain turns by more than 40° are corners (never removed).
+    // Chain vertices where the chain turns by more than `corner_angle` are corners (never
+    // removed).
     for v in 0..nv as u32 {
+        let Some(corner_angle) = corner_angle else {
+            break;
+        };
         if st.chain_deg[v as usize] != 2 {
             continue;
         }
@@ -587,7 +618,7 @@ pub fn simplify(
         let p = pos[v as usize];
         let d0 = (p - pos[ends[0] as usize]).normalize_or_zero();
         let d1 = (pos[ends[1] as usize] - p).normalize_or_zero();
-        if d0.dot(d1) < 40f64.to_radians().cos() {
+        if d0.dot(d1) < corner_angle.to_radians().cos() {
             st.pinned[v as usize] = true;
         }
     }
