@@ -259,6 +259,34 @@ pub fn remesh_with_progress(
     let params = resample::level_params(&h, opts.levels as usize, opts.quads);
     let located: Vec<param::Located> = params.par_iter().map(|p| map.locate(p)).collect();
     let param_misses = located.iter().filter(|l| l.inside < -0.02).count();
+    if tracing::enabled!(tracing::Level::DEBUG) {
+        let diag = prepared.diagonal();
+        let errs: Vec<f64> = s
+            .params
+            .par_iter()
+            .zip(&pos)
+            .map(|(p, x)| {
+                let l = map.locate(p);
+                map.point(&l)
+                    .map_or(f64::INFINITY, |q| q.distance(*x) / diag)
+            })
+            .collect();
+        tracing::debug!(
+            max = errs.iter().copied().fold(0.0, f64::max),
+            mean = errs.iter().sum::<f64>() / errs.len() as f64,
+            over_1pc = errs.iter().filter(|&&e| e > 0.01).count(),
+            over_01pc = errs.iter().filter(|&&e| e > 0.001).count(),
+            "map at the input vertices' own parameters (relative to the diagonal)"
+        );
+    }
+    tracing::debug!(
+        unregistered = map.unregistered,
+        param_misses,
+        slightly_outside = located.iter().filter(|l| l.inside < -1e-6).count(),
+        base_vertices = s.positions.len(),
+        chain_edges = s.chain_edges.len(),
+        "parameterization"
+    );
     let mut fine: Vec<DVec3> = located
         .par_iter()
         .zip(&params)
@@ -345,7 +373,7 @@ pub fn remesh_with_progress(
         progress("relax", 0.0);
         let topo = &h.topologies[opts.levels as usize];
         resample::relax(&mut fine, topo, &fixed, &proj, opts.relax_iterations, 0.5);
-        let left = resample::untangle(&mut fine, topo, &fixed, &proj, 12);
+        let left = resample::untangle(&mut fine, topo, &fixed, &proj, 6);
         if left > 0 {
             warnings.push(format!("{left} face(s) still flipped after untangling"));
         }
