@@ -10,6 +10,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod basemesh;
 mod bench;
 mod convert;
 mod demo;
@@ -63,6 +64,42 @@ enum Command {
     /// Benchmarks without file output (medians of several runs).
     #[command(subcommand)]
     Bench(BenchCommand),
+    /// Compress a mesh with the base-mesh coder (connectivity, quantized positions, crease
+    /// and corner tags) and report bits per vertex of each part.
+    CompressBase(CompressBaseArgs),
+    /// Decompress a base-mesh stream written by `compress-base` into a mesh file.
+    DecompressBase(DecompressBaseArgs),
+}
+
+/// Arguments of `subwave compress-base`.
+#[derive(Debug, clap::Args)]
+pub struct CompressBaseArgs {
+    /// The mesh (a consistently oriented 2-manifold, any face degrees).
+    #[arg(value_name = "MESH")]
+    pub mesh: PathBuf,
+    /// The stream to write (`.swb`).
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
+    /// Quantization bits per coordinate.
+    #[arg(long, value_name = "B", default_value_t = 14,
+          value_parser = clap::value_parser!(u32).range(8..=30))]
+    pub bits: u32,
+    /// Print JSON (keys vertices, faces, position_bits, bytes, connectivity_bits,
+    /// positions_bits, crease_bits, header_bits, connectivity_bpv, positions_bpv, crease_bpv,
+    /// total_bpv, encode_ms, decode_ms).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `subwave decompress-base`.
+#[derive(Debug, clap::Args)]
+pub struct DecompressBaseArgs {
+    /// The stream written by `compress-base`.
+    #[arg(value_name = "IN")]
+    pub input: PathBuf,
+    /// The mesh to write (format from the extension).
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
 }
 
 /// Arguments of `subwave distance`.
@@ -326,6 +363,8 @@ fn main() -> ExitCode {
         Command::Wavelet(args) => wavelet::run(&args),
         Command::Stability(args) => stability::run(&args),
         Command::Bench(BenchCommand::Subdivide(args)) => bench::subdivide(&args),
+        Command::CompressBase(args) => basemesh::compress(&args),
+        Command::DecompressBase(args) => basemesh::decompress(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
