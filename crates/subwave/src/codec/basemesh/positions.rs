@@ -12,12 +12,13 @@
 //!   every available parallelogram is predicted and the predictions averaged;
 //! - otherwise the average of the known neighbours, else the previous vertex.
 //!
-//! Residuals are coded per axis with the adaptive signed-integer model of the range coder, in
-//! contexts of the predictor kind (how many parallelograms) and of the magnitude class of the
-//! residuals of the known neighbours (an estimate of the local prediction error: flat regions
-//! code small residuals cheaply, detailed ones do not pollute their statistics).
+//! Residuals are coded per axis as a magnitude (adaptive Elias-gamma, [`UInt`]) and a raw
+//! sign bit, in contexts of the predictor kind, the axis, and the expected magnitude: the
+//! average bit length of the residuals of the known neighbours, averaged with that of the
+//! axes of the same vertex already coded (flat regions code small residuals cheaply, detailed
+//! ones do not pollute their statistics).
 
-use crate::codec::rangecoder::{Decoder, Encoder, SInt};
+use crate::codec::rangecoder::{Decoder, Encoder, UInt};
 
 use super::connectivity::HalfEdges;
 use super::ChunkError;
@@ -25,9 +26,9 @@ use super::ChunkError;
 const NONE: u32 = u32::MAX;
 
 /// Predictor kinds.
-const KINDS: usize = 4;
+const KINDS: usize = 3;
 /// Magnitude classes of the neighbourhood's residuals.
-const MAGS: usize = 8;
+const MAGS: usize = 14;
 
 /// Prediction tables over the decoded faces.
 struct Predictor {
@@ -138,32 +139,80 @@ impl Predictor {
         } else if nn > 0 {
             (avg(nsum, nn), 2, mag)
         } else if w > 0 {
-            (q[w as usize - 1].map(|x| x as i64), 3, mag)
+            (q[w as usize - 1].map(|x| x as i64), 2, mag)
         } else {
-            ([maxq / 2 + 1; 3].map(|x| x.min(maxq)), 3, mag)
+            ([maxq / 2 + 1; 3].map(|x| x.min(maxq)), 2, mag)
         }
     }
 }
 
-/// Magnitude class of a residual vector (bit length of its largest component, scaled).
+/// Size of a residual vector: the bit length of its largest component.
 fn mag_class(r: [i64; 3]) -> u8 {
     let m = r.iter().map(|x| x.unsigned_abs()).max().unwrap_or(0);
-    let bits = 64 - m.leading_zeros();
-    (bits.div_ceil(2)).min(MAGS as u32 - 1) as u8
+    (64 - m.leading_zeros()) as u8
 }
 
+/// The residual models: one adaptive magnitude model per context (predictor kind × expected
+/// magnitude × axis; the axis matters for flat or extruded models, whose residuals along one
+/// axis are all zero); signs are raw bits (they are equiprobable).
 struct Models {
-    res: Vec<SInt>,
+    mags: Vec<UInt>,
 }
 
 impl Models {
     fn new() -> Self {
         Models {
-            res: vec![SInt::new(); KINDS * MAGS * 3],
+            mags: vec![UInt::new(); KINDS * MAGS * 3],
         }
     }
-    fn model(&mut self, kind: usize, mag: usize, axis: usize) -> &mut SInt {
-        &mut self.res[(kind * MAGS + mag) * 3 + axis]
+
+    /// The model of `axis`: the expected magnitude is the neighbours' residual size `nb`
+    /// (a bit length), averaged with the size of the axes of this vertex already coded.
+    fn model(&mut self, kind: usize, nb: usize, axis: usize, r: &[i64; 3]) -> &mut UInt {
+        let e = if axis == 0 {
+            nb
+        } else {
+            let m = r[..axis]
+                .iter()
+                .map(|x| x.unsigned_abs())
+                .max()
+                .unwrap_or(0);
+            let own = 64 - m.leading_zeros() as usize;
+            (nb + own).div_ceil(2)
+        };
+        &mut self.mags[(kind * MAGS + e.min(MAGS - 1)) * 3 + axis]
+    }
+
+    fn encode(
+        &mut self,
+        enc: &mut Encoder,
+        kind: usize,
+        nb: usize,
+        r: &mut [i64; 3],
+        axis: usize,
+        v: i64,
+    ) {
+        r[axis] = v;
+        let m = self.model(kind, nb, axis, r);
+        m.encode(enc, v.unsigned_abs() as u32);
+        if v != 0 {
+            enc.raw((v < 0) as u32, 1);
+        }
+    }
+
+    fn decode(
+        &mut self,
+        dec: &mut Decoder,
+        kind: usize,
+        nb: usize,
+        r: &mut [i64; 3],
+        axis: usize,
+    ) -> i64 {
+        let m = self.model(kind, nb, axis, r);
+        let a = m.decode(dec) as i64;
+        let v = if a != 0 && dec.raw(1) != 0 { -a } else { a };
+        r[axis] = v;
+        v
     }
 }
 
@@ -190,12 +239,11 @@ pub(crate) fn encode(
             } else {
                 [maxq / 2; 3]
             };
-            (p, 3, MAGS - 1)
+            (p, 2, MAGS - 1)
         };
         let mut r = [0i64; 3];
         for i in 0..3 {
-            r[i] = q[w][i] as i64 - p[i];
-            m.model(kind, mag, i).encode(enc, r[i]);
+            m.encode(enc, kind, mag, &mut r, i, q[w][i] as i64 - p[i]);
         }
         res_mag[w] = mag_class(r);
     }
@@ -230,12 +278,12 @@ pub(crate) fn decode(
             } else {
                 [maxq / 2; 3]
             };
-            (p, 3, MAGS - 1)
+            (p, 2, MAGS - 1)
         };
         let mut r = [0i64; 3];
         let mut x = [0u32; 3];
         for i in 0..3 {
-            r[i] = m.model(kind, mag, i).decode(dec);
+            m.decode(dec, kind, mag, &mut r, i);
             let v = p[i] + r[i];
             if !(0..=maxq).contains(&v) {
                 return Err(ChunkError::new(
