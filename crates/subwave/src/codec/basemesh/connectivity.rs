@@ -67,23 +67,21 @@ impl HalfEdges {
                 face[c] = f as u32;
             }
         }
-        let mut keys: Vec<(u64, u32)> = (0..n)
-            .map(|c| {
-                let a = indices[c];
-                let b = indices[next[c] as usize];
-                ((a.min(b) as u64) << 32 | a.max(b) as u64, c as u32)
-            })
-            .collect();
-        keys.sort_unstable();
+        let order = corners_by_edge(indices, &next);
+        let key = |c: u32| {
+            let (a, b) = (indices[c as usize], indices[next[c as usize] as usize]);
+            (a.min(b), a.max(b))
+        };
         let mut twin = vec![NONE; n];
         let mut i = 0;
         while i < n {
+            let k = key(order[i]);
             let mut j = i + 1;
-            while j < n && keys[j].0 == keys[i].0 {
+            while j < n && key(order[j]) == k {
                 j += 1;
             }
             if j - i == 2 {
-                let (c, d) = (keys[i].1 as usize, keys[i + 1].1 as usize);
+                let (c, d) = (order[i] as usize, order[i + 1] as usize);
                 if indices[c] != indices[d] {
                     twin[c] = d as u32;
                     twin[d] = c as u32;
@@ -98,6 +96,40 @@ impl HalfEdges {
             twin,
         }
     }
+}
+
+/// The corners (half-edges) ordered so that those of the same undirected edge are
+/// contiguous: a counting sort on the smaller vertex, then a sort of each (small) bucket on
+/// the larger one. `O(n)` for bounded valences, `O(n log n)` whatever the input.
+pub(crate) fn corners_by_edge(indices: &[u32], next: &[u32]) -> Vec<u32> {
+    let n = indices.len();
+    let nv = indices.iter().max().map_or(0, |&m| m as usize + 1);
+    let lo = |c: usize| indices[c].min(indices[next[c] as usize]);
+    let hi = |c: u32| {
+        let c = c as usize;
+        indices[c].max(indices[next[c] as usize])
+    };
+    let mut off = vec![0u32; nv + 1];
+    for c in 0..n {
+        off[lo(c) as usize + 1] += 1;
+    }
+    for v in 0..nv {
+        off[v + 1] += off[v];
+    }
+    let mut fill = off.clone();
+    let mut order = vec![0u32; n];
+    for c in 0..n {
+        let l = lo(c) as usize;
+        order[fill[l] as usize] = c as u32;
+        fill[l] += 1;
+    }
+    for v in 0..nv {
+        let bucket = &mut order[off[v] as usize..off[v + 1] as usize];
+        if bucket.len() > 1 {
+            bucket.sort_unstable_by_key(|&c| (hi(c), c));
+        }
+    }
+    order
 }
 
 /// The cut border: cyclic doubly linked lists of vertex occurrences ("nodes"). The border

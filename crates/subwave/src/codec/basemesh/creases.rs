@@ -15,33 +15,12 @@ use std::collections::{BTreeMap, HashMap};
 use crate::codec::rangecoder::{Bit, Decoder, Encoder, UInt};
 use crate::mesh::{EdgeTag, Mesh, VertexTag, SHARPNESS_INFINITE};
 
+use super::connectivity::corners_by_edge;
 use super::ChunkError;
 
 /// The edges of `mesh` in order of first appearance, each in its first traversal direction.
 pub(crate) fn edge_list(mesh: &Mesh) -> Vec<[u32; 2]> {
     let idx = &mesh.face_indices;
-    let mut keys: Vec<(u64, u32)> = Vec::with_capacity(idx.len());
-    for w in mesh.face_offsets.windows(2) {
-        let (a, b) = (w[0] as usize, w[1] as usize);
-        for c in a..b {
-            let n = if c + 1 == b { a } else { c + 1 };
-            let (x, y) = (idx[c], idx[n]);
-            keys.push(((x.min(y) as u64) << 32 | x.max(y) as u64, c as u32));
-        }
-    }
-    keys.sort_unstable();
-    // The first corner of each edge, in corner order.
-    let mut firsts: Vec<u32> = Vec::new();
-    let mut i = 0;
-    while i < keys.len() {
-        firsts.push(keys[i].1);
-        let mut j = i + 1;
-        while j < keys.len() && keys[j].0 == keys[i].0 {
-            j += 1;
-        }
-        i = j;
-    }
-    firsts.sort_unstable();
     // Corner -> next corner in its face.
     let mut next = vec![0u32; idx.len()];
     for w in mesh.face_offsets.windows(2) {
@@ -50,9 +29,27 @@ pub(crate) fn edge_list(mesh: &Mesh) -> Vec<[u32; 2]> {
             *nx = if c + 1 == b { a as u32 } else { c as u32 + 1 };
         }
     }
-    firsts
-        .iter()
-        .map(|&c| [idx[c as usize], idx[next[c as usize] as usize]])
+    let order = corners_by_edge(idx, &next);
+    let key = |c: u32| {
+        let (a, b) = (idx[c as usize], idx[next[c as usize] as usize]);
+        (a.min(b), a.max(b))
+    };
+    // Mark the first corner (in corner order) of each edge; buckets are sorted by corner
+    // within equal keys, so that is the first of each run.
+    let mut first = vec![false; idx.len()];
+    let mut i = 0;
+    while i < order.len() {
+        first[order[i] as usize] = true;
+        let k = key(order[i]);
+        let mut j = i + 1;
+        while j < order.len() && key(order[j]) == k {
+            j += 1;
+        }
+        i = j;
+    }
+    (0..idx.len())
+        .filter(|&c| first[c])
+        .map(|c| [idx[c], idx[next[c] as usize]])
         .collect()
 }
 
@@ -91,13 +88,14 @@ fn encode_flags(m: &mut Models, enc: &mut Encoder, tags: &[(u32, f64)]) {
     }
 }
 
+/// Decodes the tags after their `count` (decoded by the caller), `n` the number of ids.
 fn decode_flags(
     m: &mut Models,
     dec: &mut Decoder,
+    count: usize,
     n: usize,
     what: &str,
 ) -> std::result::Result<Vec<(u32, f64)>, ChunkError> {
-    let count = m.count.decode(dec) as usize;
     if count > n {
         return Err(ChunkError::new(
             dec,
@@ -205,16 +203,19 @@ pub(crate) fn decode(
 ) -> std::result::Result<(Vec<EdgeTag>, Vec<VertexTag>), ChunkError> {
     let mut m = Models::new();
     let mut edge_tags = Vec::new();
-    // Peek: the edge list is only needed when there are edge tags; decode the count first
-    // through the same model by decoding the flags with the edge count computed lazily.
-    let edges = edge_list(mesh);
-    for (e, s) in decode_flags(&mut m, dec, edges.len(), "edge")? {
-        edge_tags.push(EdgeTag {
-            vertices: edges[e as usize],
-            sharpness: s,
-        });
+    // The edge list is only needed when there are edge tags.
+    let count = m.count.decode(dec) as usize;
+    if count > 0 {
+        let edges = edge_list(mesh);
+        for (e, s) in decode_flags(&mut m, dec, count, edges.len(), "edge")? {
+            edge_tags.push(EdgeTag {
+                vertices: edges[e as usize],
+                sharpness: s,
+            });
+        }
     }
-    let vertex_tags = decode_flags(&mut m, dec, mesh.num_vertices(), "vertex")?
+    let count = m.count.decode(dec) as usize;
+    let vertex_tags = decode_flags(&mut m, dec, count, mesh.num_vertices(), "vertex")?
         .into_iter()
         .map(|(v, s)| VertexTag {
             vertex: v,
