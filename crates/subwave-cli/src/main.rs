@@ -10,6 +10,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod basemesh;
 mod bench;
 mod convert;
 mod decode;
@@ -80,6 +81,11 @@ enum Command {
     /// irregular): the stream cut at several byte budgets, each prefix decoded and measured
     /// against the input (RMS, Hausdorff, PSNR), with an SVG plot and optional peer curves.
     Eval(EvalArgs),
+    /// Compress a mesh with the base-mesh coder (connectivity, quantized positions, crease
+    /// and corner tags) and report bits per vertex of each part.
+    CompressBase(CompressBaseArgs),
+    /// Decompress a base-mesh stream written by `compress-base` into a mesh file.
+    DecompressBase(DecompressBaseArgs),
 }
 
 /// Arguments of `subwave eval`.
@@ -212,6 +218,37 @@ pub struct BenchDecodeArgs {
     /// Print JSON (keys decode_ms, vertices, faces, bytes, runs, min_ms).
     #[arg(long)]
     pub json: bool,
+}
+
+/// Arguments of `subwave compress-base`.
+#[derive(Debug, clap::Args)]
+pub struct CompressBaseArgs {
+    /// The mesh (a consistently oriented 2-manifold, any face degrees).
+    #[arg(value_name = "MESH")]
+    pub mesh: PathBuf,
+    /// The stream to write (`.swb`).
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
+    /// Quantization bits per coordinate.
+    #[arg(long, value_name = "B", default_value_t = 14,
+          value_parser = clap::value_parser!(u32).range(8..=30))]
+    pub bits: u32,
+    /// Print JSON (keys vertices, faces, position_bits, bytes, connectivity_bits,
+    /// positions_bits, crease_bits, header_bits, connectivity_bpv, positions_bpv, crease_bpv,
+    /// total_bpv, encode_ms, decode_ms).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `subwave decompress-base`.
+#[derive(Debug, clap::Args)]
+pub struct DecompressBaseArgs {
+    /// The stream written by `compress-base`.
+    #[arg(value_name = "IN")]
+    pub input: PathBuf,
+    /// The mesh to write (format from the extension).
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
 }
 
 /// Arguments of `subwave distance`.
@@ -485,6 +522,8 @@ fn main() -> ExitCode {
         Command::Decode(args) => decode::run(&args),
         Command::Remesh(args) => remesh::run(&args),
         Command::Bench(BenchCommand::Remesh(args)) => remesh::bench(&args),
+        Command::CompressBase(args) => basemesh::compress(&args),
+        Command::DecompressBase(args) => basemesh::decompress(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
