@@ -34,8 +34,7 @@ pub fn parse_trees(s: &str) -> Result<Vec<u32>, String> {
 /// Runs `subwave decode`.
 pub fn run(args: &DecodeArgs) -> Result<()> {
     let name = print::path(&args.input);
-    let bytes =
-        std::fs::read(&args.input).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let bytes = std::fs::read(&args.input).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let info = inspect(&bytes).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let max_bytes = match (args.bytes, args.bpv) {
         (Some(_), Some(_)) => bail!("give --bytes or --bpv, not both"),

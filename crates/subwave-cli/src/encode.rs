@@ -133,10 +133,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     if args.lossless && opts.wavelet == Wavelet::Loop {
         bail!("--lossless needs an integer wavelet: butterfly or midpoint (triangles), linear or cubic (quads)");
     }
-    if args.lossless {
-        opts.lifted = true;
-    }
-    opts.lifted |= args.lifted;
+    opts.lifted = args.lossless || !args.unlifted;
     opts.contexts = !args.no_contexts;
     if let Some(b) = args.bits {
         opts.bits = b;
