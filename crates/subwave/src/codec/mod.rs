@@ -9,11 +9,13 @@
 //! - [`quantize`]: coefficient and position quantization (Maret eqs. 4.7-4.12);
 //! - [`spiht`]: the SPIHT coder of the detail coefficients (Maret Algorithm 1);
 //! - [`container`]: the `.swv` stream format (header, chunk index, checksums);
+//! - [`prepare`]: any input mesh to the hierarchy the codec takes (detection or remeshing);
 //! - [`progressive`]: the encode/decode API of progressive and lossless streams.
 
 pub mod container;
 pub mod eval;
 pub mod forest;
+pub mod prepare;
 pub mod progressive;
 pub mod quantize;
 pub mod rangecoder;
