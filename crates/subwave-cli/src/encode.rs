@@ -5,11 +5,10 @@ use std::time::Instant;
 
 use anyhow::{bail, Result};
 use clap::ValueEnum;
+use subwave::codec::prepare::{prepare, PrepareOptions};
 use subwave::codec::progressive::{encode, inspect, EncodeOptions, Layout, Wavelet};
 use subwave::codec::quantize::ComponentMode;
-use subwave::hierarchy::Hierarchy;
 use subwave::io::read_mesh;
-use subwave::remesh::{remesh, RemeshOptions};
 use subwave::subdivision::refine::Split;
 use subwave::wavelet::triangle::DetailFrame;
 
@@ -58,11 +57,6 @@ pub enum ComponentsArg {
     Independent,
 }
 
-/// Levels of the remesh of an irregular input, unless --levels says otherwise.
-const DEFAULT_LEVELS: u32 = 4;
-/// Base faces of the remesh of an irregular input, unless --base-faces says otherwise.
-const DEFAULT_BASE_FACES: u32 = 400;
-
 /// Runs `subwave encode`.
 pub fn run(args: &EncodeArgs) -> Result<()> {
     let name = print::path(&args.mesh);
@@ -71,33 +65,23 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     let input_vertices = mesh.num_vertices();
     let t0 = Instant::now();
     // A semi-regular mesh is used as it is; anything else is remeshed first.
-    let detected = if mesh.is_triangle_mesh() || mesh.is_quad_mesh() {
-        Hierarchy::detect(&mesh, args.levels).ok()
-    } else {
-        None
+    let popts = PrepareOptions {
+        levels: args.levels,
+        base_faces: args.base_faces.map(|n| n as usize),
+        quads: matches!(args.wavelet, Some(WaveletArg::Linear | WaveletArg::Cubic)),
+        ..Default::default()
     };
-    let (h, remeshed) = match detected {
-        Some((h, _)) => {
-            if args.base_faces.is_some() {
-                tracing::warn!("--base-faces only applies to remeshed (irregular) input; the detected base mesh is used");
-            }
-            (h, false)
+    let prepared =
+        prepare(&mesh, &popts, &mut |_, _| {}).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let remeshed = prepared.remeshed.is_some();
+    if let Some(r) = &prepared.remeshed {
+        for w in &r.warnings {
+            tracing::warn!("{name}: {w}");
         }
-        None => {
-            let opts = RemeshOptions {
-                levels: args.levels.unwrap_or(DEFAULT_LEVELS),
-                base_faces: args.base_faces.unwrap_or(DEFAULT_BASE_FACES) as usize,
-                quads: matches!(args.wavelet, Some(WaveletArg::Linear | WaveletArg::Cubic)),
-                repair: true,
-                ..Default::default()
-            };
-            let r = remesh(&mesh, &opts).map_err(|e| anyhow::anyhow!("{name}: remeshing: {e}"))?;
-            for w in &r.warnings {
-                tracing::warn!("{name}: {w}");
-            }
-            (r.hierarchy, true)
-        }
-    };
+    } else if args.base_faces.is_some() {
+        tracing::warn!("--base-faces only applies to remeshed (irregular) input; the detected base mesh is used");
+    }
+    let h = prepared.hierarchy;
     let mut opts = EncodeOptions::for_hierarchy(&h);
     if let Some(w) = args.wavelet {
         opts.wavelet = match w {
@@ -133,10 +117,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     if args.lossless && opts.wavelet == Wavelet::Loop {
         bail!("--lossless needs an integer wavelet: butterfly or midpoint (triangles), linear or cubic (quads)");
     }
-    if args.lossless {
-        opts.lifted = true;
-    }
-    opts.lifted |= args.lifted;
+    opts.lifted = args.lossless || !args.unlifted;
     opts.contexts = !args.no_contexts;
     if let Some(b) = args.bits {
         opts.bits = b;

@@ -157,9 +157,9 @@ pub struct EncodeArgs {
     /// The wavelet (default: butterfly on triangle meshes, cubic on quad meshes).
     #[arg(long, value_enum)]
     pub wavelet: Option<encode::WaveletArg>,
-    /// Lifted midpoint/butterfly (always on with --lossless).
+    /// Unlifted midpoint/butterfly (no update step; not with --lossless).
     #[arg(long)]
-    pub lifted: bool,
+    pub unlifted: bool,
     /// Bit planes of the coefficient quantization (eq. 4.8; default 16), or with --lossless
     /// the bits of the position grid (default 12).
     #[arg(long, value_name = "B", value_parser = clap::value_parser!(u32).range(1..=30))]

@@ -333,3 +333,44 @@ fn trees_layout_selects_and_adds_trees() {
     let chunk = s[off as usize..off as usize + m as usize].to_vec();
     td.add_tree(7, &chunk).unwrap();
 }
+
+/// The reference stream of the golden test: a bumpy sphere, 2 levels, default options.
+fn golden_stream() -> Vec<u8> {
+    let h = bumpy(2);
+    encode(
+        &h,
+        &EncodeOptions {
+            bits: 10,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
+const GOLDEN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/bumpy2.swv");
+
+/// The stream format is pinned: a change of the encoder's output (or of the format) fails
+/// here. If the change is intended, bump `container::VERSION` when the format changed, and
+/// regenerate the file with `SUBWAVE_BLESS=1 cargo test -p subwave --test codec golden`.
+#[test]
+fn golden_bytes_of_a_small_reference_stream() {
+    let s = golden_stream();
+    if std::env::var_os("SUBWAVE_BLESS").is_some() {
+        std::fs::write(GOLDEN, &s).unwrap();
+    }
+    let golden = std::fs::read(GOLDEN).expect("tests/golden/bumpy2.swv");
+    assert_eq!(
+        u16::from_le_bytes([golden[4], golden[5]]),
+        subwave::codec::container::VERSION,
+        "the golden stream has another version: regenerate it (see the test's doc)"
+    );
+    assert!(
+        s == golden,
+        "the encoder's output changed ({} bytes, golden {})",
+        s.len(),
+        golden.len()
+    );
+    let d = full(&golden);
+    assert!(d.complete);
+    assert!(max_err(&d.mesh.positions, &bumpy(2).positions) < 1e-2);
+}

@@ -153,12 +153,17 @@ pub enum Layout {
     Trees,
 }
 
-/// Encoder options.
+/// Encoder options. The defaults (lifted butterfly, local frames, aligned components,
+/// contexts on, 16 bit planes, 14-bit base grid) were chosen by measurement on the remeshed
+/// Stanford bunny (5 levels over 400 base faces; PSNR against the input at 8, 14 and 25 KB):
+/// lifted butterfly 60.6/63.6/64.8 dB; unlifted butterfly 59.4/62.8/64.4; lifted midpoint
+/// 60.8/63.2/64.6; Loop 57.2/61.4/64.3; global frames −0.1 to −0.3 dB; independent
+/// components within ±0.1 dB; raw bits (no contexts) −1 to −2.2 dB.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EncodeOptions {
     /// The wavelet (must match the hierarchy: triangle or quad).
     pub wavelet: Wavelet,
-    /// Lifted (update step) midpoint/butterfly; ignored by the other wavelets.
+    /// Lifted (update step) midpoint/butterfly; ignored by the other wavelets (default on).
     pub lifted: bool,
     /// Detail coordinates (triangle wavelets; quad wavelets are always global).
     pub frames: DetailFrame,
@@ -184,10 +189,10 @@ impl Default for EncodeOptions {
     fn default() -> Self {
         EncodeOptions {
             wavelet: Wavelet::Butterfly,
-            lifted: false,
+            lifted: true,
             frames: DetailFrame::Local,
             bits: 16,
-            base_bits: 16,
+            base_bits: 14,
             components: ComponentMode::Aligned,
             contexts: true,
             layout: Layout::Embedded,
@@ -932,6 +937,31 @@ pub fn decode(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
     let bytes = &bytes[..limit];
     let p = parse(bytes)?;
     let s = setup(&p, bytes)?;
+    // The coefficients and the synthesis tables are independent: build them in parallel.
+    let (coded, t) = rayon::join(
+        || decode_coefficients(&p, &s, bytes, opts),
+        || transform(&p, &s.hierarchy),
+    );
+    let (coefs, used, planes_complete, planes, complete) = coded?;
+    let mesh = reconstruct_with(&p, &s, &coefs, &t?)?;
+    Ok(Decoded {
+        mesh,
+        bytes_used: used.min(limit),
+        planes_complete,
+        planes,
+        complete,
+    })
+}
+
+/// Decodes the coefficient chunks: the coefficients, bytes used, complete planes, planes and
+/// whether everything was decoded.
+fn decode_coefficients(
+    p: &Parsed,
+    s: &Setup,
+    bytes: &[u8],
+    opts: &DecodeOptions,
+) -> Result<(Coefficients, usize, u32, u32, bool)> {
+    let limit = bytes.len();
     let mut coefs = Coefficients::new(&s.forest);
     let contexts = p.flags & F_CONTEXTS != 0;
     let planes = spiht::num_planes(p.top);
@@ -1019,17 +1049,38 @@ pub fn decode(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
             }
         }
     }
-    let mesh = reconstruct(&p, &s, &coefs)?;
-    Ok(Decoded {
-        mesh,
-        bytes_used: used.min(limit),
-        planes_complete,
-        planes,
-        complete,
-    })
+    Ok((coefs, used.min(limit), planes_complete, planes, complete))
+}
+
+/// The inverse transform of a stream, float or integer.
+enum AnyTransform<'h> {
+    Float(Transform<'h>),
+    Int(IntTransform<'h>),
+}
+
+fn transform<'h>(p: &Parsed, hier: &'h Hierarchy) -> Result<AnyTransform<'h>> {
+    let lifted = p.flags & F_LIFTED != 0;
+    if p.flags & F_LOSSLESS != 0 {
+        Ok(AnyTransform::Int(IntTransform::new(
+            hier, p.wavelet, lifted,
+        )?))
+    } else {
+        let frame = if p.flags & F_LOCAL != 0 {
+            DetailFrame::Local
+        } else {
+            DetailFrame::Global
+        };
+        Ok(AnyTransform::Float(Transform::new(
+            hier, p.wavelet, lifted, frame,
+        )?))
+    }
 }
 
 fn reconstruct(p: &Parsed, s: &Setup, coefs: &Coefficients) -> Result<Mesh> {
+    reconstruct_with(p, s, coefs, &transform(p, &s.hierarchy)?)
+}
+
+fn reconstruct_with(p: &Parsed, s: &Setup, coefs: &Coefficients, t: &AnyTransform) -> Result<Mesh> {
     let h = &p.c.header;
     let hier = &s.hierarchy;
     let v0 = hier.num_vertices(0);
@@ -1037,47 +1088,44 @@ fn reconstruct(p: &Parsed, s: &Setup, coefs: &Coefficients) -> Result<Mesh> {
         origin: h.grid_origin,
         step: h.grid_step,
     };
-    let lifted = p.flags & F_LIFTED != 0;
-    let positions = if p.flags & F_LOSSLESS != 0 {
-        let mut data = s.base_q.clone();
-        data.reserve(s.forest.num_nodes);
-        for n in 0..s.forest.num_nodes {
-            let mut d = [0i64; 3];
-            for (c, x) in d.iter_mut().enumerate() {
-                let e = 3 * n + c;
-                let w = coefs.width[e];
-                if w != INSIGNIFICANT {
-                    let m = coefs.lo[e] as i64 + ((1i64 << w) >> 1);
-                    *x = if coefs.neg[e] { -m } else { m };
+    let positions = match t {
+        AnyTransform::Int(t) => {
+            let mut data = s.base_q.clone();
+            data.reserve(s.forest.num_nodes);
+            for n in 0..s.forest.num_nodes {
+                let mut d = [0i64; 3];
+                for (c, x) in d.iter_mut().enumerate() {
+                    let e = 3 * n + c;
+                    let w = coefs.width[e];
+                    if w != INSIGNIFICANT {
+                        let m = coefs.lo[e] as i64 + ((1i64 << w) >> 1);
+                        *x = if coefs.neg[e] { -m } else { m };
+                    }
                 }
+                data.push(d);
             }
-            data.push(d);
+            t.inverse(&mut data)
+                .map_err(|e| derr(0, format!("integer synthesis: {e}")))?;
+            data.iter().map(|&q| grid.dequantize(q)).collect()
         }
-        IntTransform::new(hier, p.wavelet, lifted)?
-            .inverse(&mut data)
-            .map_err(|e| derr(0, format!("integer synthesis: {e}")))?;
-        data.iter().map(|&q| grid.dequantize(q)).collect()
-    } else {
-        let frame = if p.flags & F_LOCAL != 0 {
-            DetailFrame::Local
-        } else {
-            DetailFrame::Global
-        };
-        let mut flat = Vec::with_capacity(v0 + s.forest.num_nodes);
-        flat.extend(s.base_q.iter().map(|&q| grid.dequantize(q)));
-        for n in 0..s.forest.num_nodes {
-            let mut d = DVec3::ZERO;
-            for c in 0..3 {
-                let e = 3 * n + c;
-                let w = coefs.width[e];
-                if w != INSIGNIFICANT {
-                    d[c] = quantize::reconstruct(coefs.lo[e], w as u32, coefs.neg[e], h.steps[c]);
+        AnyTransform::Float(t) => {
+            let mut flat = Vec::with_capacity(v0 + s.forest.num_nodes);
+            flat.extend(s.base_q.iter().map(|&q| grid.dequantize(q)));
+            for n in 0..s.forest.num_nodes {
+                let mut d = DVec3::ZERO;
+                for c in 0..3 {
+                    let e = 3 * n + c;
+                    let w = coefs.width[e];
+                    if w != INSIGNIFICANT {
+                        d[c] =
+                            quantize::reconstruct(coefs.lo[e], w as u32, coefs.neg[e], h.steps[c]);
+                    }
                 }
+                flat.push(d);
             }
-            flat.push(d);
+            t.inverse(&mut flat)?;
+            flat
         }
-        Transform::new(hier, p.wavelet, lifted, frame)?.inverse(&mut flat)?;
-        flat
     };
     Ok(hier.level_mesh(hier.levels(), positions))
 }

@@ -1,0 +1,232 @@
+//! End-to-end tests of `subwave encode`, `subwave decode` and `subwave bench decode`.
+
+use std::process::{Command, Output, Stdio};
+
+use serde_json::Value;
+use subwave::generate;
+use subwave::io::{read_mesh, write_mesh};
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_subwave"))
+        .args(args)
+        .stdin(Stdio::null())
+        .env_remove("RUST_LOG")
+        .output()
+        .expect("cannot start the subwave executable")
+}
+
+fn ok(args: &[&str]) -> String {
+    let o = run(args);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "subwave {args:?} failed:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn fails(args: &[&str]) -> String {
+    let o = run(args);
+    assert_eq!(o.status.code(), Some(1), "subwave {args:?} should fail");
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A semi-regular bumpy sphere (icosahedron split `levels` times), written in scrambled
+/// vertex order to show that any order is detected.
+fn write_semi_regular(path: &std::path::Path, levels: u32) -> usize {
+    let mut m = generate::icosahedron();
+    for _ in 0..levels {
+        m = generate::midpoint_split(&m);
+    }
+    for p in &mut m.positions {
+        let d = p.normalize();
+        *p = d * (1.0 + 0.05 * (4.0 * d.x).sin() * (3.0 * d.z).cos());
+    }
+    // Reverse the vertex order.
+    let n = m.positions.len() as u32;
+    m.positions.reverse();
+    for i in &mut m.face_indices {
+        *i = n - 1 - *i;
+    }
+    write_mesh(&m, path, None).unwrap();
+    m.positions.len()
+}
+
+#[test]
+fn encode_decode_round_trip_and_prefixes() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("s.obj");
+    let n = write_semi_regular(&mesh, 3);
+    let swv = dir.path().join("s.swv");
+    let out = ok(&[
+        "encode",
+        mesh.to_str().unwrap(),
+        "-o",
+        swv.to_str().unwrap(),
+    ]);
+    assert!(
+        out.contains("3 levels over 12 base vertices / 20 faces"),
+        "{out}"
+    );
+    let full = dir.path().join("full.ply");
+    let out = ok(&[
+        "decode",
+        swv.to_str().unwrap(),
+        "-o",
+        full.to_str().unwrap(),
+    ]);
+    assert!(out.contains("(complete)"), "{out}");
+    let m = read_mesh(&full, None).unwrap();
+    assert_eq!(m.num_vertices(), n);
+    let low = dir.path().join("low.obj");
+    let out = ok(&[
+        "decode",
+        swv.to_str().unwrap(),
+        "-o",
+        low.to_str().unwrap(),
+        "--bpv",
+        "12",
+    ]);
+    assert!(!out.contains("(complete)"), "{out}");
+    assert_eq!(read_mesh(&low, None).unwrap().num_vertices(), n);
+    // The distance of the prefix to the input is larger than the full decode's.
+    let psnr = |a: &str, b: &str| {
+        let j: Value =
+            serde_json::from_str(&ok(&["distance", a, b, "--samples", "20000", "--json"])).unwrap();
+        j["psnr"].as_f64().unwrap()
+    };
+    let (m0, f0, l0) = (
+        mesh.to_str().unwrap(),
+        full.to_str().unwrap(),
+        low.to_str().unwrap(),
+    );
+    assert!(psnr(m0, f0) > psnr(m0, l0) + 3.0);
+    let j: Value = serde_json::from_str(&ok(&[
+        "bench",
+        "decode",
+        swv.to_str().unwrap(),
+        "--json",
+        "--runs",
+        "2",
+    ]))
+    .unwrap();
+    assert_eq!(j["vertices"].as_u64(), Some(n as u64));
+    assert!(j["decode_ms"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn lossless_trees_and_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("s.obj");
+    write_semi_regular(&mesh, 2);
+    let swv = dir.path().join("l.swv");
+    let out = ok(&[
+        "encode",
+        mesh.to_str().unwrap(),
+        "-o",
+        swv.to_str().unwrap(),
+        "--lossless",
+        "--bits",
+        "14",
+        "--wavelet",
+        "midpoint",
+        "--layout",
+        "trees",
+    ]);
+    assert!(
+        out.contains("lossless") && out.contains("trees layout"),
+        "{out}"
+    );
+    let dec = dir.path().join("d.obj");
+    ok(&["decode", swv.to_str().unwrap(), "-o", dec.to_str().unwrap()]);
+    // Same surface up to the grid step (2/16383 of the longest side, half a step per axis).
+    let j: Value = serde_json::from_str(&ok(&[
+        "distance",
+        mesh.to_str().unwrap(),
+        dec.to_str().unwrap(),
+        "--samples",
+        "5000",
+        "--json",
+    ]))
+    .unwrap();
+    let step = 2.2 / 16383.0;
+    assert!(j["max"].as_f64().unwrap() <= step, "{j}");
+    // Some trees only.
+    let out = ok(&[
+        "decode",
+        swv.to_str().unwrap(),
+        "-o",
+        dec.to_str().unwrap(),
+        "--trees",
+        "0,2-5",
+    ]);
+    assert!(!out.contains("(complete)"), "{out}");
+    let e = fails(&[
+        "decode",
+        swv.to_str().unwrap(),
+        "-o",
+        dec.to_str().unwrap(),
+        "--trees",
+        "x",
+    ]);
+    assert!(e.contains("not a tree number"), "{e}");
+    // Corrupt chunk.
+    let mut bytes = std::fs::read(&swv).unwrap();
+    let n = bytes.len();
+    bytes[n - 3] ^= 0x40;
+    let bad = dir.path().join("bad.swv");
+    std::fs::write(&bad, &bytes).unwrap();
+    let e = fails(&["decode", bad.to_str().unwrap(), "-o", dec.to_str().unwrap()]);
+    assert!(
+        e.contains("fails its checksum") && e.contains("(tree "),
+        "{e}"
+    );
+    // Not a stream.
+    let e = fails(&[
+        "decode",
+        mesh.to_str().unwrap(),
+        "-o",
+        dec.to_str().unwrap(),
+    ]);
+    assert!(e.contains("not a subwave stream"), "{e}");
+    // Loop is not lossless.
+    let e = fails(&[
+        "encode",
+        mesh.to_str().unwrap(),
+        "-o",
+        swv.to_str().unwrap(),
+        "--lossless",
+        "--wavelet",
+        "loop",
+    ]);
+    assert!(e.contains("integer wavelet"), "{e}");
+}
+
+#[test]
+fn irregular_input_is_remeshed() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("t.obj");
+    write_mesh(&generate::torus(1.0, 0.4, 25, 13, true), &mesh, None).unwrap();
+    let swv = dir.path().join("t.swv");
+    let out = ok(&[
+        "encode",
+        mesh.to_str().unwrap(),
+        "-o",
+        swv.to_str().unwrap(),
+        "--levels",
+        "2",
+        "--base-faces",
+        "64",
+    ]);
+    assert!(out.contains("remeshed, 2 levels"), "{out}");
+    let dec = dir.path().join("t.glb");
+    ok(&[
+        "decode",
+        swv.to_str().unwrap(),
+        "-o",
+        dec.to_str().unwrap(),
+        "--bytes",
+        "2000",
+    ]);
+}
