@@ -111,7 +111,7 @@ impl Default for RemeshOptions {
             quads: false,
             sharp_angle: None,
             repair: false,
-            relax_iterations: 4,
+            relax_iterations: 6,
             method: MethodChoice::Auto,
         }
     }

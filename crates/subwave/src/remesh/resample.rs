@@ -384,7 +384,29 @@ pub fn untangle(
                 }
             }
         }
-        flipped = flipped_faces(topo, pos, proj);
+        // Re-test only the faces around the region.
+        let mut faces: Vec<u32> = Vec::new();
+        for (v, &r) in region.iter().enumerate() {
+            if r {
+                faces.extend_from_slice(topo.vertex_faces(v));
+            }
+        }
+        faces.sort_unstable();
+        faces.dedup();
+        let cur: &[DVec3] = pos;
+        let updates: Vec<(u32, bool)> = faces
+            .par_iter()
+            .map(|&f| {
+                let fv = topo.face_vertices(f as usize);
+                let n = face_normal(fv, cur);
+                let c = fv.iter().map(|&v| cur[v as usize]).sum::<DVec3>() / fv.len() as f64;
+                let (_, tri) = proj.closest(c);
+                (f, n.dot(proj.normals[tri as usize]) <= 0.0)
+            })
+            .collect();
+        for (f, flip) in updates {
+            flipped[f as usize] = flip;
+        }
         count = flipped.iter().filter(|&&f| f).count();
     }
     count

@@ -384,6 +384,27 @@ impl State<'_> {
         best
     }
 
+    /// The cheapest collapse out of `u` among those the chain rules allow, without the
+    /// (costlier) topological and geometric checks, which run when it leaves the queue.
+    fn best_unchecked(&self, u: u32, nu: &mut Vec<u32>) -> Option<(f64, u32)> {
+        let ui = u as usize;
+        if !self.alive[ui] || self.pinned[ui] || self.chain_deg[ui] > 2 || self.chain_deg[ui] == 1 {
+            return None;
+        }
+        self.neighbors(u, nu);
+        let mut best: Option<(f64, u32)> = None;
+        for &v in nu.iter() {
+            if self.chain_deg[ui] == 2 && !self.chain.contains(&key(u, v)) {
+                continue;
+            }
+            let c = self.cost(u, v);
+            if best.is_none_or(|(bc, _)| c < bc) {
+                best = Some((c, v));
+            }
+        }
+        best
+    }
+
     /// Re-attaches point `p` (an input vertex) to the closest of `faces`.
     fn attach(&mut self, p: u32, faces: &[u32]) {
         let x = self.pos[p as usize];
@@ -778,7 +799,7 @@ pub fn simplify(
     let mut heap = BinaryHeap::with_capacity(nv);
     let (mut nu, mut scratch) = (Vec::new(), Vec::new());
     for u in 0..nv as u32 {
-        if let Some((cost, v)) = st.best(u, &mut nu, &mut scratch) {
+        if let Some((cost, v)) = st.best_unchecked(u, &mut nu) {
             heap.push(Entry {
                 cost,
                 u,
@@ -820,7 +841,7 @@ pub fn simplify(
         for &w in &ring {
             let wi = w as usize;
             st.stamp[wi] += 1;
-            if let Some((cost, t)) = st.best(w, &mut nu, &mut scratch) {
+            if let Some((cost, t)) = st.best_unchecked(w, &mut nu) {
                 heap.push(Entry {
                     cost,
                     u: w,
