@@ -340,6 +340,21 @@ impl State<'_> {
         if after < self.comp_target[c] || (self.comp_closed[c] && after < 4) || after < 1 {
             return false;
         }
+        // No new face may duplicate an existing one (a "pillow" of two faces on the same
+        // three vertices).
+        for &f in &self.vfaces[ui] {
+            let t = self.faces[f as usize];
+            if t.contains(&v) {
+                continue;
+            }
+            let others: Vec<u32> = t.iter().copied().filter(|&w| w != u).collect();
+            if self.vfaces[vi].iter().any(|&g| {
+                let tg = &self.faces[g as usize];
+                tg.contains(&others[0]) && tg.contains(&others[1])
+            }) {
+                return false;
+            }
+        }
         // No face flips or degenerates.
         let pv = self.pos[vi];
         for &f in &self.vfaces[ui] {
