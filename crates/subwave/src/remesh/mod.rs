@@ -111,7 +111,7 @@ impl Default for RemeshOptions {
             quads: false,
             sharp_angle: None,
             repair: false,
-            relax_iterations: 4,
+            relax_iterations: 6,
             method: MethodChoice::Auto,
         }
     }
@@ -439,8 +439,22 @@ fn chain_polylines(
             }
         }
     }
+    // Sorted by their parameter, re-parameterized by arc length so resampled points spread
+    // evenly along the curve.
     for line in out.values_mut() {
         line.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let mut acc = 0.0;
+        let mut arc = Vec::with_capacity(line.len());
+        arc.push(0.0);
+        for w in line.windows(2) {
+            acc += w[0].1.distance(w[1].1);
+            arc.push(acc);
+        }
+        if acc > 0.0 {
+            for (x, a) in line.iter_mut().zip(arc) {
+                x.0 = a / acc;
+            }
+        }
     }
     out
 }
