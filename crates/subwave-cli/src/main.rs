@@ -10,18 +10,20 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod basemesh;
 mod bench;
 mod convert;
 mod decode;
 mod demo;
 mod distance;
 mod encode;
+mod eval;
 mod info;
 mod print;
+mod progress;
 mod remesh;
 mod stability;
 mod subdivide;
-#[allow(dead_code)] // used by `subwave eval` (in progress)
 mod svg;
 mod wavelet;
 
@@ -75,6 +77,62 @@ enum Command {
     /// Decode a `.swv` stream, or a prefix of it (--bytes, --bpv), or some of its trees, into
     /// a mesh.
     Decode(DecodeArgs),
+    /// Rate-distortion table of the progressive codec on a mesh (remeshed first if
+    /// irregular): the stream cut at several byte budgets, each prefix decoded and measured
+    /// against the input (RMS, Hausdorff, PSNR), with an SVG plot and optional peer curves.
+    Eval(EvalArgs),
+    /// Compress a mesh with the base-mesh coder (connectivity, quantized positions, crease
+    /// and corner tags) and report bits per vertex of each part.
+    CompressBase(CompressBaseArgs),
+    /// Decompress a base-mesh stream written by `compress-base` into a mesh file.
+    DecompressBase(DecompressBaseArgs),
+}
+
+/// Arguments of `subwave eval`.
+#[derive(Debug, clap::Args)]
+pub struct EvalArgs {
+    /// The mesh (any; an irregular one is remeshed first, as `subwave encode` does).
+    #[arg(value_name = "MESH")]
+    pub mesh: PathBuf,
+    /// The input format, if the extension does not tell it.
+    #[arg(short, long, value_name = "F", value_parser = parse_format)]
+    pub format: Option<Format>,
+    /// Subdivision levels (of the remesh; or required of a semi-regular input).
+    #[arg(long, value_name = "L", value_parser = clap::value_parser!(u32).range(1..=12))]
+    pub levels: Option<u32>,
+    /// Base faces of the remesh (irregular input only).
+    #[arg(long, value_name = "N")]
+    pub base_faces: Option<u32>,
+    /// Feature edges of the remesh: dihedral angle in degrees.
+    #[arg(long, value_name = "DEG")]
+    pub sharp_angle: Option<f64>,
+    /// The wavelet (default: butterfly on triangle meshes, cubic on quad meshes).
+    #[arg(long, value_enum)]
+    pub wavelet: Option<encode::WaveletArg>,
+    /// Bit planes of the coefficient quantization (eq. 4.8).
+    #[arg(long, value_name = "B", value_parser = clap::value_parser!(u32).range(1..=30))]
+    pub bits: Option<u32>,
+    /// Detail coordinates (triangle wavelets; default local).
+    #[arg(long, value_enum)]
+    pub frames: Option<encode::FramesArg>,
+    /// Truncation points (byte budgets spaced geometrically from the base mesh to the whole
+    /// stream).
+    #[arg(long, value_name = "K", default_value_t = 10,
+          value_parser = clap::value_parser!(u32).range(2..=100))]
+    pub points: u32,
+    /// Area samples per surface of the distance.
+    #[arg(long, value_name = "S", default_value_t = subwave::distance::DEFAULT_SAMPLES)]
+    pub samples: usize,
+    /// A peer's rate-distortion points (lines `NAME ... bpv=X psnr=YdB`, the output of
+    /// ../shared/peers/draco_rd.py), plotted and compared at equal PSNR; repeatable.
+    #[arg(long, value_name = "FILE")]
+    pub reference: Vec<PathBuf>,
+    /// Write the plot (PSNR against bits per input vertex) as SVG.
+    #[arg(long, value_name = "FILE")]
+    pub svg: Option<PathBuf>,
+    /// Print JSON (`points`: list of {bytes, bpv, rms, max, psnr}).
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of `subwave encode`.
@@ -160,6 +218,37 @@ pub struct BenchDecodeArgs {
     /// Print JSON (keys decode_ms, vertices, faces, bytes, runs, min_ms).
     #[arg(long)]
     pub json: bool,
+}
+
+/// Arguments of `subwave compress-base`.
+#[derive(Debug, clap::Args)]
+pub struct CompressBaseArgs {
+    /// The mesh (a consistently oriented 2-manifold, any face degrees).
+    #[arg(value_name = "MESH")]
+    pub mesh: PathBuf,
+    /// The stream to write (`.swb`).
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
+    /// Quantization bits per coordinate.
+    #[arg(long, value_name = "B", default_value_t = 14,
+          value_parser = clap::value_parser!(u32).range(8..=30))]
+    pub bits: u32,
+    /// Print JSON (keys vertices, faces, position_bits, bytes, connectivity_bits,
+    /// positions_bits, crease_bits, header_bits, connectivity_bpv, positions_bpv, crease_bpv,
+    /// total_bpv, encode_ms, decode_ms).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `subwave decompress-base`.
+#[derive(Debug, clap::Args)]
+pub struct DecompressBaseArgs {
+    /// The stream written by `compress-base`.
+    #[arg(value_name = "IN")]
+    pub input: PathBuf,
+    /// The mesh to write (format from the extension).
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
 }
 
 /// Arguments of `subwave distance`.
@@ -426,12 +515,15 @@ fn main() -> ExitCode {
         Command::Distance(args) => distance::run(&args),
         Command::Wavelet(args) => wavelet::run(&args),
         Command::Stability(args) => stability::run(&args),
+        Command::Eval(args) => eval::run(&args),
         Command::Bench(BenchCommand::Subdivide(args)) => bench::subdivide(&args),
         Command::Bench(BenchCommand::Decode(args)) => bench::decode(&args),
         Command::Encode(args) => encode::run(&args),
         Command::Decode(args) => decode::run(&args),
         Command::Remesh(args) => remesh::run(&args),
         Command::Bench(BenchCommand::Remesh(args)) => remesh::bench(&args),
+        Command::CompressBase(args) => basemesh::compress(&args),
+        Command::DecompressBase(args) => basemesh::decompress(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -4,6 +4,9 @@
 //! - [`rangecoder`]: the adaptive binary range coder every bitstream of subwave uses, with
 //!   exact prefix semantics (a truncated stream decodes exactly the symbols it fully
 //!   determines);
+//! - [`basemesh`]: the single-rate coder of base meshes and irregular meshes (valence-driven
+//!   connectivity with Face Fixer polygons, parallelogram-predicted positions, run-length
+//!   crease flags);
 //! - [`eval`]: rate–distortion curves of progressive streams against the input mesh;
 //! - [`forest`]: the edge-offspring forest (MPEG-4 AFX) and the quad vertex/face forest;
 //! - [`quantize`]: coefficient and position quantization (Maret eqs. 4.7-4.12);
@@ -12,6 +15,7 @@
 //! - [`prepare`]: any input mesh to the hierarchy the codec takes (detection or remeshing);
 //! - [`progressive`]: the encode/decode API of progressive and lossless streams.
 
+pub mod basemesh;
 pub mod container;
 pub mod eval;
 pub mod forest;

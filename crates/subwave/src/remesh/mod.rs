@@ -31,7 +31,6 @@ pub mod resample;
 pub mod shrinkwrap;
 pub mod simplify;
 
-use std::collections::HashSet;
 use std::time::Instant;
 
 use glam::DVec3;
@@ -92,7 +91,9 @@ pub struct RemeshOptions {
     /// for Bertram et al.'s B-spline wavelets) instead of 1-to-4 triangle splits.
     pub quads: bool,
     /// Edges with a dihedral angle above this many degrees are features: kept on base edges so
-    /// creases stay sharp. `None`: no features (boundaries are always kept).
+    /// creases stay sharp, and boundary or crease vertices where the curve turns by more than
+    /// this angle are kept as base vertices. `None`: no features (boundaries are always kept
+    /// as boundaries).
     pub sharp_angle: Option<f64>,
     /// Cut non-manifold edges and split non-manifold vertices instead of failing.
     pub repair: bool,
@@ -209,7 +210,7 @@ pub fn remesh_with_progress(
         ));
     }
     let prepared = Mesh::from_triangles(pos.clone(), &tris);
-    let features: HashSet<(u32, u32)> = match opts.sharp_angle {
+    let features: simplify::PairSet = match opts.sharp_angle {
         Some(deg) => {
             let topo = Topology::build(&prepared);
             sharp_edges_by_angle(&prepared, &topo, deg)
@@ -220,16 +221,21 @@ pub fn remesh_with_progress(
                 })
                 .collect()
         }
-        None => HashSet::new(),
+        None => simplify::PairSet::default(),
     };
     timings.prepare_ms = ms(t);
     progress("prepare", 1.0);
 
     // 2. Simplify with parameter tracking.
     let t = Instant::now();
-    let s = simplify::simplify(&pos, &tris, &features, opts.base_faces, &mut |f| {
-        progress("simplify", f)
-    });
+    let s = simplify::simplify(
+        &pos,
+        &tris,
+        &features,
+        opts.base_faces,
+        opts.sharp_angle,
+        &mut |f| progress("simplify", f),
+    );
     let base_tri = Mesh::from_triangles(s.positions.clone(), &s.triangles);
     let proj = resample::Projector::new(&pos, &tris)?;
     timings.simplify_ms = ms(t);
@@ -253,6 +259,34 @@ pub fn remesh_with_progress(
     let params = resample::level_params(&h, opts.levels as usize, opts.quads);
     let located: Vec<param::Located> = params.par_iter().map(|p| map.locate(p)).collect();
     let param_misses = located.iter().filter(|l| l.inside < -0.02).count();
+    if tracing::enabled!(tracing::Level::DEBUG) {
+        let diag = prepared.diagonal();
+        let errs: Vec<f64> = s
+            .params
+            .par_iter()
+            .zip(&pos)
+            .map(|(p, x)| {
+                let l = map.locate(p);
+                map.point(&l)
+                    .map_or(f64::INFINITY, |q| q.distance(*x) / diag)
+            })
+            .collect();
+        tracing::debug!(
+            max = errs.iter().copied().fold(0.0, f64::max),
+            mean = errs.iter().sum::<f64>() / errs.len() as f64,
+            over_1pc = errs.iter().filter(|&&e| e > 0.01).count(),
+            over_01pc = errs.iter().filter(|&&e| e > 0.001).count(),
+            "map at the input vertices' own parameters (relative to the diagonal)"
+        );
+    }
+    tracing::debug!(
+        unregistered = map.unregistered,
+        param_misses,
+        slightly_outside = located.iter().filter(|l| l.inside < -1e-6).count(),
+        base_vertices = s.positions.len(),
+        chain_edges = s.chain_edges.len(),
+        "parameterization"
+    );
     let mut fine: Vec<DVec3> = located
         .par_iter()
         .zip(&params)
@@ -339,7 +373,7 @@ pub fn remesh_with_progress(
         progress("relax", 0.0);
         let topo = &h.topologies[opts.levels as usize];
         resample::relax(&mut fine, topo, &fixed, &proj, opts.relax_iterations, 0.5);
-        let left = resample::untangle(&mut fine, topo, &fixed, &proj, 12);
+        let left = resample::untangle(&mut fine, topo, &fixed, &proj, 6);
         if left > 0 {
             warnings.push(format!("{left} face(s) still flipped after untangling"));
         }

@@ -292,10 +292,40 @@ pub fn flipped_faces(topo: &Topology, pos: &[DVec3], proj: &Projector) -> Vec<bo
         .collect()
 }
 
-/// Untangling: the free vertices of flipped faces move to the centroid of their neighbours
-/// (full Laplacian, so a fold opens) and are re-projected onto the input when the input
-/// normal there agrees with the neighbourhood's; repeated while faces are flipped, at most
-/// `rounds` times, each round widening the smoothed region by one ring. Returns the number
+/// Number of faces around `v` that are flipped against the input when `v` is at `p`.
+fn flips_around(v: usize, p: DVec3, topo: &Topology, pos: &[DVec3], proj: &Projector) -> usize {
+    let mut count = 0;
+    for &f in topo.vertex_faces(v) {
+        let fv = topo.face_vertices(f as usize);
+        let m = fv.len();
+        let q = |i: usize| {
+            if fv[i] as usize == v {
+                p
+            } else {
+                pos[fv[i] as usize]
+            }
+        };
+        let mut n = DVec3::ZERO;
+        let mut c = DVec3::ZERO;
+        for i in 0..m {
+            c += q(i);
+            if i >= 1 && i + 1 < m {
+                n += (q(i) - q(0)).cross(q(i + 1) - q(0));
+            }
+        }
+        let (_, tri) = proj.closest(c / m as f64);
+        if n.dot(proj.normals[tri as usize]) <= 0.0 {
+            count += 1;
+        }
+    }
+    count
+}
+
+/// Untangling: each free vertex of a flipped face tries the closest input point of the
+/// centroid of its neighbours (a full Laplacian step, which opens a fold) and of the
+/// midpoints between it and its current position, and takes the first that lowers the number
+/// of flipped faces around it; vertices stay on the input. Gauss-Seidel over the flipped
+/// region, at most `rounds` rounds, each widening the region by one ring. Returns the number
 /// of flipped faces left.
 pub fn untangle(
     pos: &mut [DVec3],
@@ -310,7 +340,6 @@ pub fn untangle(
         if count == 0 {
             break;
         }
-        // Region: vertices of flipped faces, grown by `radius - 1` rings.
         let mut region = vec![false; pos.len()];
         for (f, &flip) in flipped.iter().enumerate() {
             if flip {
@@ -319,7 +348,7 @@ pub fn untangle(
                 }
             }
         }
-        for _ in 1..radius {
+        for _ in 1..radius.min(3) {
             let grown = region.clone();
             for (v, &r) in grown.iter().enumerate() {
                 if r {
@@ -329,43 +358,30 @@ pub fn untangle(
                 }
             }
         }
-        for _ in 0..3 {
-            let cur: &[DVec3] = pos;
-            let moves: Vec<(usize, DVec3)> = (0..cur.len())
-                .into_par_iter()
-                .filter(|&v| region[v] && !fixed[v])
-                .filter_map(|v| {
-                    let edges = topo.vertex_edges(v);
-                    if edges.is_empty() {
-                        return None;
-                    }
-                    let c = edges
-                        .iter()
-                        .map(|&e| cur[topo.other_vertex(e as usize, v as u32) as usize])
-                        .sum::<DVec3>()
-                        / edges.len() as f64;
-                    let mut n = DVec3::ZERO;
-                    for &f in topo.vertex_faces(v) {
-                        let fv = topo.face_vertices(f as usize);
-                        // Normal of the face with v at the centroid.
-                        let mut q: Vec<DVec3> = fv.iter().map(|&w| cur[w as usize]).collect();
-                        let k = fv.iter().position(|&w| w as usize == v).unwrap_or(0);
-                        q[k] = c;
-                        let o = q[0];
-                        for i in 1..q.len() - 1 {
-                            n += (q[i] - o).cross(q[i + 1] - o);
-                        }
-                    }
-                    let (p, tri) = proj.closest(c);
-                    if proj.normals[tri as usize].dot(n) > 0.0 {
-                        Some((v, p))
-                    } else {
-                        Some((v, c))
-                    }
-                })
-                .collect();
-            for (v, p) in moves {
-                pos[v] = p;
+        for v in 0..pos.len() {
+            if !region[v] || fixed[v] {
+                continue;
+            }
+            let edges = topo.vertex_edges(v);
+            if edges.is_empty() {
+                continue;
+            }
+            let c = edges
+                .iter()
+                .map(|&e| pos[topo.other_vertex(e as usize, v as u32) as usize])
+                .sum::<DVec3>()
+                / edges.len() as f64;
+            let now = flips_around(v, pos[v], topo, pos, proj);
+            if now == 0 {
+                continue;
+            }
+            let p0 = pos[v];
+            for t in [1.0, 0.5, 0.25] {
+                let (q, _) = proj.closest(p0.lerp(c, t));
+                if flips_around(v, q, topo, pos, proj) < now {
+                    pos[v] = q;
+                    break;
+                }
             }
         }
         flipped = flipped_faces(topo, pos, proj);

@@ -26,11 +26,36 @@
 #![allow(clippy::needless_range_loop)] // parallel arrays indexed by vertex and face
 
 use std::cmp::Ordering;
-use std::collections::{BinaryHeap, HashSet};
+use std::collections::BinaryHeap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 use glam::DVec3;
 
 use crate::topology::UnionFind;
+
+/// A multiplicative hasher for the integer-pair keys of the edge sets (FxHash's mixing).
+#[derive(Default, Clone, Copy)]
+pub struct PairHasher(u64);
+
+impl Hasher for PairHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u32(&mut self, x: u32) {
+        self.write_u64(x as u64);
+    }
+    fn write_u64(&mut self, x: u64) {
+        self.0 = (self.0.rotate_left(5) ^ x).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+}
+
+/// A hash set of vertex pairs with [`PairHasher`].
+pub type PairSet = std::collections::HashSet<(u32, u32), BuildHasherDefault<PairHasher>>;
 
 /// A point of the parameter domain: a triangle of the base mesh and barycentric
 /// coordinates in it (summing to 1).
@@ -54,7 +79,7 @@ pub struct Simplified {
     /// The parameter of each input vertex.
     pub params: Vec<Param>,
     /// Base edges (vertex pairs, sorted) that are boundary or feature edges.
-    pub chain_edges: HashSet<(u32, u32)>,
+    pub chain_edges: PairSet,
 }
 
 #[derive(Clone, Copy, Default)]
@@ -180,6 +205,18 @@ pub fn closest_bary(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> [f64; 3] {
     [1.0 - v - w, v, w]
 }
 
+/// Barycentric coordinates of `p` in the planar triangle `c` (either orientation).
+fn bary_2d(c: [[f64; 2]; 3], p: [f64; 2]) -> [f64; 3] {
+    let [a, b, cc] = c;
+    let det = (b[0] - a[0]) * (cc[1] - a[1]) - (cc[0] - a[0]) * (b[1] - a[1]);
+    if det == 0.0 {
+        return [-1.0; 3];
+    }
+    let l1 = ((p[0] - a[0]) * (cc[1] - a[1]) - (cc[0] - a[0]) * (p[1] - a[1])) / det;
+    let l2 = ((b[0] - a[0]) * (p[1] - a[1]) - (p[0] - a[0]) * (b[1] - a[1])) / det;
+    [1.0 - l1 - l2, l1, l2]
+}
+
 /// Closest point of segment `ab` to `p` as the parameter `t` (`a + t (b − a)`).
 fn closest_on_segment(p: DVec3, a: DVec3, b: DVec3) -> f64 {
     let d = b - a;
@@ -198,7 +235,7 @@ struct State<'a> {
     vfaces: Vec<Vec<u32>>,
     alive: Vec<bool>,
     quadric: Vec<Quadric>,
-    chain: HashSet<(u32, u32)>,
+    chain: PairSet,
     chain_deg: Vec<u8>,
     comp: Vec<u32>,
     comp_faces: Vec<usize>,
@@ -395,6 +432,75 @@ impl State<'_> {
         }
     }
 
+    /// The star of `u` flattened as in MAPS §3.2: `u` at the origin, each ring vertex at
+    /// angle (cumulative 3D angle) · `2π / Θ` (`π / Θ` on a boundary) and radius
+    /// `(r / r_max)^(2π / Θ)`. `None` if the ring is not one fan.
+    fn flatten(&self, u: u32, faces: &[u32]) -> Option<Vec<(u32, [f64; 2])>> {
+        let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(faces.len());
+        for &f in faces {
+            let t = self.faces[f as usize];
+            let k = t.iter().position(|&w| w == u)?;
+            pairs.push((t[(k + 1) % 3], t[(k + 2) % 3]));
+        }
+        let start = pairs
+            .iter()
+            .find(|(a, _)| !pairs.iter().any(|(_, b)| b == a))
+            .map(|p| p.0);
+        let boundary = start.is_some();
+        let mut ring = vec![start.unwrap_or(pairs[0].0)];
+        loop {
+            let cur = *ring.last().unwrap();
+            let Some(&(_, b)) = pairs.iter().find(|(a, _)| *a == cur) else {
+                break;
+            };
+            if b == ring[0] {
+                break;
+            }
+            ring.push(b);
+            if ring.len() > pairs.len() + 1 {
+                return None;
+            }
+        }
+        let expected = if boundary {
+            pairs.len() + 1
+        } else {
+            pairs.len()
+        };
+        if ring.len() != expected {
+            return None;
+        }
+        let pu = self.pos[u as usize];
+        let d: Vec<DVec3> = ring.iter().map(|&w| self.pos[w as usize] - pu).collect();
+        let n = ring.len();
+        let steps = if boundary { n - 1 } else { n };
+        let angles: Vec<f64> = (0..steps)
+            .map(|i| d[i].angle_between(d[(i + 1) % n]))
+            .collect();
+        let total: f64 = angles.iter().sum();
+        if total.partial_cmp(&0.0) != Some(Ordering::Greater) {
+            return None;
+        }
+        let a = if boundary {
+            std::f64::consts::PI
+        } else {
+            2.0 * std::f64::consts::PI
+        } / total;
+        let rmax = d.iter().map(|x| x.length()).fold(0.0, f64::max);
+        if rmax <= 0.0 {
+            return None;
+        }
+        let mut out = Vec::with_capacity(n);
+        let mut phi = 0.0f64;
+        for i in 0..n {
+            let r = (d[i].length() / rmax).powf(a);
+            out.push((ring[i], [r * phi.cos(), r * phi.sin()]));
+            if i < steps {
+                phi += a * angles[i];
+            }
+        }
+        Some(out)
+    }
+
     fn collapse(&mut self, u: u32, v: u32) {
         let (ui, vi) = (u as usize, v as usize);
         let mut nu = Vec::new();
@@ -409,6 +515,30 @@ impl State<'_> {
         // Points to re-attach.
         let mut points = vec![u];
         let old_faces = std::mem::take(&mut self.vfaces[ui]);
+        let flat = self.flatten(u, &old_faces);
+        // Old parameters of the points, as planar positions in the flattened star.
+        let mut planar: Vec<(u32, [f64; 2])> = Vec::new();
+        if let Some(flat) = &flat {
+            let at = |w: u32| flat.iter().find(|x| x.0 == w).map(|x| x.1);
+            planar.push((u, [0.0, 0.0]));
+            for &f in &old_faces {
+                let t = self.faces[f as usize];
+                let c = t.map(|w| at(w).unwrap_or([0.0, 0.0]));
+                for &p in &self.face_points[f as usize] {
+                    if self.chain_point[p as usize] {
+                        continue;
+                    }
+                    let b = self.params[p as usize].bary;
+                    planar.push((
+                        p,
+                        [
+                            b[0] * c[0][0] + b[1] * c[1][0] + b[2] * c[2][0],
+                            b[0] * c[0][1] + b[1] * c[1][1] + b[2] * c[2][1],
+                        ],
+                    ));
+                }
+            }
+        }
         let mut new_faces = Vec::with_capacity(old_faces.len());
         for &f in &old_faces {
             points.append(&mut self.face_points[f as usize]);
@@ -436,8 +566,56 @@ impl State<'_> {
         self.alive[ui] = false;
         let qu = self.quadric[ui];
         self.quadric[vi].add(&qu);
-        for p in points {
-            self.attach(p, &new_faces);
+        // Planar re-attachment (MAPS §3.3): locate each point's flattened position in the
+        // new fan around v; chain points, and points outside every new planar triangle (or
+        // all points, if the new fan folds in the plane), by closest point in space.
+        let mut done = vec![false; points.len()];
+        if let Some(flat) = &flat {
+            let at = |w: u32| {
+                flat.iter()
+                    .find(|x| x.0 == w)
+                    .map(|x| x.1)
+                    .unwrap_or([0.0, 0.0])
+            };
+            let tris: Vec<(u32, [[f64; 2]; 3])> = new_faces
+                .iter()
+                .map(|&f| (f, self.faces[f as usize].map(at)))
+                .collect();
+            let folds = tris.iter().any(|(_, c)| {
+                (c[1][0] - c[0][0]) * (c[2][1] - c[0][1])
+                    - (c[2][0] - c[0][0]) * (c[1][1] - c[0][1])
+                    <= 0.0
+            });
+            if !folds {
+                let index: Vec<u32> = points.clone();
+                for &(p, xy) in &planar {
+                    let mut best = (f64::NEG_INFINITY, 0u32, [0.0; 3]);
+                    for &(f, c) in &tris {
+                        let l = bary_2d(c, xy);
+                        let m = l[0].min(l[1]).min(l[2]);
+                        if m > best.0 {
+                            best = (m, f, l);
+                        }
+                    }
+                    if best.0 >= -1e-9 {
+                        let l = best.2.map(|x| x.max(0.0));
+                        let sum = l[0] + l[1] + l[2];
+                        self.params[p as usize] = Param {
+                            face: best.1,
+                            bary: l.map(|x| x / sum),
+                        };
+                        self.face_points[best.1 as usize].push(p);
+                        if let Some(i) = index.iter().position(|&q| q == p) {
+                            done[i] = true;
+                        }
+                    }
+                }
+            }
+        }
+        for (i, p) in points.into_iter().enumerate() {
+            if !done[i] {
+                self.attach(p, &new_faces);
+            }
         }
         self.recount_chain(v);
         for &w in &nu {
@@ -448,14 +626,16 @@ impl State<'_> {
 
 /// Simplifies the oriented manifold triangle mesh `(pos, tris)` to about `target` faces
 /// (see the module documentation). `chain_edges` are the input's feature edges (sorted
-/// vertex pairs); boundary edges are added to them. `progress` receives the fraction done.
+/// vertex pairs); boundary edges are added to them. Chain vertices where the chain turns by
+/// more than `corner_angle` degrees are kept. `progress` receives the fraction done.
 ///
 /// Preconditions: `tris` index `pos`, form an oriented 2-manifold without degenerate faces.
 pub fn simplify(
     pos: &[DVec3],
     tris: &[[u32; 3]],
-    chain_edges: &HashSet<(u32, u32)>,
+    chain_edges: &PairSet,
     target: usize,
+    corner_angle: Option<f64>,
     progress: &mut dyn FnMut(f64),
 ) -> Simplified {
     let nv = pos.len();
@@ -479,8 +659,8 @@ pub fn simplify(
     }
     let mut comp_faces = vec![0usize; ncomp];
     let mut comp_area = vec![0.0f64; ncomp];
-    let mut edge_count: std::collections::HashMap<(u32, u32), u32> =
-        std::collections::HashMap::with_capacity(3 * nf / 2 + 1);
+    let mut edge_count: std::collections::HashMap<(u32, u32), u32, BuildHasherDefault<PairHasher>> =
+        Default::default();
     let mut quadric = vec![Quadric::default(); nv];
     let mut vfaces: Vec<Vec<u32>> = vec![Vec::new(); nv];
     let mut total_area = 0.0;
@@ -503,7 +683,7 @@ pub fn simplify(
             *edge_count.entry(key(t[i], t[(i + 1) % 3])).or_default() += 1;
         }
     }
-    let mut chain: HashSet<(u32, u32)> = chain_edges.clone();
+    let mut chain: PairSet = chain_edges.clone();
     let mut comp_closed = vec![true; ncomp];
     for (&k, &n) in &edge_count {
         if n == 1 {
@@ -573,8 +753,12 @@ pub fn simplify(
     for v in 0..nv as u32 {
         st.recount_chain(v);
     }
-    // Chain vertices where the chain turns by more than 40° are corners (never removed).
+    // Chain vertices where the chain turns by more than `corner_angle` are corners (never
+    // removed).
     for v in 0..nv as u32 {
+        let Some(corner_angle) = corner_angle else {
+            break;
+        };
         if st.chain_deg[v as usize] != 2 {
             continue;
         }
@@ -587,7 +771,7 @@ pub fn simplify(
         let p = pos[v as usize];
         let d0 = (p - pos[ends[0] as usize]).normalize_or_zero();
         let d1 = (pos[ends[1] as usize] - p).normalize_or_zero();
-        if d0.dot(d1) < 40f64.to_radians().cos() {
+        if d0.dot(d1) < corner_angle.to_radians().cos() {
             st.pinned[v as usize] = true;
         }
     }

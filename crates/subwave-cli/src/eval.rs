@@ -1,0 +1,311 @@
+//! `subwave eval`: the rate–distortion table of the progressive codec on a mesh — the stream
+//! cut at several byte budgets, each prefix decoded and measured against the input — with an
+//! SVG plot and, optionally, a peer's curve (Draco, from `../shared/peers/draco_rd.py`) for a
+//! side-by-side comparison at equal PSNR.
+
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use serde_json::json;
+use subwave::codec::eval::{self, bpv_at_psnr, RdPoint};
+use subwave::codec::prepare::{prepare, PrepareOptions};
+use subwave::codec::progressive::{decode, encode, inspect, DecodeOptions, EncodeOptions, Wavelet};
+use subwave::io::read_mesh;
+use subwave::subdivision::refine::Split;
+use subwave::wavelet::triangle::DetailFrame;
+
+use crate::encode::{FramesArg, WaveletArg};
+use crate::svg::{self, Series};
+use crate::{print, progress, EvalArgs};
+
+/// A reference curve read from a peer's output.
+struct Reference {
+    name: String,
+    points: Vec<RdPoint>,
+}
+
+/// Parses `draco_rd.py`-style lines (`NAME V=.. draco qp=.. bytes=.. bpv=.. psnr=..dB ...`):
+/// the lines whose first word is `mesh_file`, or all lines if they are all of one other mesh
+/// (the mesh was renamed), sorted by rate.
+fn parse_reference(text: &str, path: &Path, mesh_file: &str) -> Result<Reference> {
+    let mut all = Vec::new();
+    let mut mine = Vec::new();
+    let mut meshes = std::collections::BTreeSet::new();
+    let mut name = String::from("reference");
+    for (i, line) in text.lines().enumerate() {
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let field = |key: &str| {
+            words
+                .iter()
+                .find_map(|w| w.strip_prefix(key).and_then(|v| v.strip_prefix('=')))
+        };
+        let (Some(bpv), Some(psnr)) = (field("bpv"), field("psnr")) else {
+            continue;
+        };
+        let num = |s: &str, what: &str| -> Result<f64> {
+            s.trim_end_matches("dB")
+                .parse::<f64>()
+                .with_context(|| format!("{}:{}: bad {what} value `{s}`", path.display(), i + 1))
+        };
+        let p = RdPoint {
+            bytes: match field("bytes") {
+                Some(b) => num(b, "bytes")? as usize,
+                None => 0,
+            },
+            bpv: num(bpv, "bpv")?,
+            rms: f64::NAN,
+            max: f64::NAN,
+            psnr: num(psnr, "psnr")?,
+        };
+        if let Some(n) = words.get(2).filter(|w| !w.contains('=')) {
+            name = n.to_string();
+        }
+        meshes.insert(words.first().copied().unwrap_or_default().to_string());
+        if words.first() == Some(&mesh_file) {
+            mine.push(p);
+        }
+        all.push(p);
+    }
+    if mine.is_empty() && meshes.len() > 1 {
+        bail!(
+            "{}: no line is about `{mesh_file}`, and the file has lines of {} meshes ({}): keep \
+             the lines of this mesh only",
+            path.display(),
+            meshes.len(),
+            meshes.into_iter().collect::<Vec<_>>().join(", ")
+        );
+    }
+    let mut points = if mine.is_empty() { all } else { mine };
+    if points.is_empty() {
+        bail!(
+            "{}: no rate-distortion line (`... bpv=X psnr=YdB ...`) found",
+            path.display()
+        );
+    }
+    points.sort_by(|a, b| a.bpv.total_cmp(&b.bpv));
+    Ok(Reference { name, points })
+}
+
+fn options(args: &EvalArgs, split: Split) -> Result<EncodeOptions> {
+    let mut o = EncodeOptions::default();
+    if split == Split::Polygons {
+        o.wavelet = Wavelet::Cubic;
+        o.frames = DetailFrame::Global;
+    }
+    if let Some(w) = args.wavelet {
+        o.wavelet = match w {
+            WaveletArg::Loop => Wavelet::Loop,
+            WaveletArg::Butterfly => Wavelet::Butterfly,
+            WaveletArg::Midpoint => Wavelet::Midpoint,
+            WaveletArg::Linear => Wavelet::Linear,
+            WaveletArg::Cubic => Wavelet::Cubic,
+        };
+    }
+    if let Some(f) = args.frames {
+        o.frames = match f {
+            FramesArg::Local => DetailFrame::Local,
+            FramesArg::Global => DetailFrame::Global,
+        };
+    }
+    if let Some(b) = args.bits {
+        o.bits = b;
+    }
+    Ok(o)
+}
+
+/// Runs `subwave eval`.
+pub fn run(args: &EvalArgs) -> Result<()> {
+    let name = print::path(&args.mesh);
+    let file_name = args
+        .mesh
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let mut mesh = read_mesh(&args.mesh, args.format)?;
+    mesh.remove_unreferenced();
+    let references = args
+        .reference
+        .iter()
+        .map(|p| {
+            let text = std::fs::read_to_string(p).with_context(|| p.display().to_string())?;
+            parse_reference(&text, p, &file_name)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let t0 = Instant::now();
+    let quads = matches!(args.wavelet, Some(WaveletArg::Linear | WaveletArg::Cubic));
+    let prep = progress::with_bar("prepare", args.json, |cb| {
+        prepare(
+            &mesh,
+            &PrepareOptions {
+                levels: args.levels,
+                base_faces: args.base_faces.map(|n| n as usize),
+                quads,
+                sharp_angle: args.sharp_angle,
+                force_remesh: false,
+            },
+            cb,
+        )
+    })
+    .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let h = &prep.hierarchy;
+    let mut opts = options(args, h.split)?;
+    opts.input_vertices = Some(mesh.num_vertices() as u32);
+    let bytes = encode(h, &opts).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let info = inspect(&bytes)?;
+    let first = info.header_bytes + info.base_bytes;
+    let budgets = eval::budgets(first.max(1), bytes.len(), args.points as usize)?;
+    let points = eval::rate_distortion(&mesh, &budgets, args.samples, |b| {
+        let d = decode(
+            &bytes,
+            &DecodeOptions {
+                max_bytes: Some(b),
+                trees: None,
+            },
+        )?;
+        Ok(d.mesh)
+    })
+    .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    // Each point's bytes beside the reference's rate at the same PSNR.
+    let ratio = |r: &Reference, p: &RdPoint| bpv_at_psnr(&r.points, p.psnr).map(|x| p.bpv / x);
+
+    if let Some(svg_path) = &args.svg {
+        let mine: Vec<(f64, f64)> = points.iter().map(|p| (p.bpv, p.psnr)).collect();
+        let refs: Vec<Vec<(f64, f64)>> = references
+            .iter()
+            .map(|r| r.points.iter().map(|p| (p.bpv, p.psnr)).collect())
+            .collect();
+        let label = format!("subwave ({})", opts.wavelet.name());
+        let mut series = vec![Series {
+            name: &label,
+            points: &mine,
+        }];
+        for (r, pts) in references.iter().zip(&refs) {
+            series.push(Series {
+                name: &r.name,
+                points: pts,
+            });
+        }
+        let text = svg::plot(
+            &format!("{file_name}: rate-distortion"),
+            "bits per input vertex",
+            "PSNR (dB)",
+            &series,
+        );
+        std::fs::write(svg_path, text).with_context(|| svg_path.display().to_string())?;
+    }
+
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    if args.json {
+        let v = json!({
+            "input": args.mesh.display().to_string(),
+            "input_vertices": mesh.num_vertices(),
+            "remeshed": prep.remeshed.is_some(),
+            "method": prep.remeshed.as_ref().map(|r| r.method.name()),
+            "levels": h.levels(),
+            "base_faces": h.base.num_faces(),
+            "coded_vertices": h.positions.len(),
+            "wavelet": opts.wavelet.name(),
+            "stream_bytes": bytes.len(),
+            "header_bytes": info.header_bytes,
+            "base_bytes": info.base_bytes,
+            "encode_ms": encode_ms,
+            "points": points,
+            "references": references.iter().map(|r| json!({
+                "name": r.name,
+                "points": r.points.iter().map(|p| json!({"bytes": p.bytes, "bpv": p.bpv, "psnr": p.psnr})).collect::<Vec<_>>(),
+                "ratios": points.iter().map(|p| ratio(r, p)).collect::<Vec<_>>(),
+            })).collect::<Vec<_>>(),
+        });
+        writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
+        return Ok(());
+    }
+    writeln!(
+        out,
+        "{name}: {} vertices; {}{} levels over {} base faces -> {} vertices; {} wavelet; {} bytes in {:.0} ms",
+        mesh.num_vertices(),
+        match &prep.remeshed {
+            Some(r) => format!("remeshed ({}), ", r.method.name()),
+            None => String::new(),
+        },
+        h.levels(),
+        h.base.num_faces(),
+        h.positions.len(),
+        opts.wavelet.name(),
+        bytes.len(),
+        encode_ms
+    )?;
+    let mut header = format!(
+        "  {:>9} {:>7} {:>11} {:>11} {:>7}",
+        "bytes", "bpv", "rms", "hausdorff", "psnr"
+    );
+    for r in &references {
+        header.push_str(&format!(
+            " {:>12} {:>6}",
+            format!("{} bpv", r.name),
+            "ratio"
+        ));
+    }
+    writeln!(out, "{header}")?;
+    for p in &points {
+        let mut line = format!(
+            "  {:>9} {:>7.3} {:>11.4e} {:>11.4e} {:>7.2}",
+            p.bytes, p.bpv, p.rms, p.max, p.psnr
+        );
+        for r in &references {
+            match bpv_at_psnr(&r.points, p.psnr) {
+                Some(x) => line.push_str(&format!(" {:>12.3} {:>6.2}", x, p.bpv / x)),
+                None => line.push_str(&format!(" {:>12} {:>6}", "-", "-")),
+            }
+        }
+        writeln!(out, "{line}")?;
+    }
+    if let Some(p) = &args.svg {
+        writeln!(out, "wrote {}", p.display())?;
+    }
+    out.flush()?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn draco_lines_are_parsed_and_filtered_by_mesh() {
+        let text = "\
+stanford-bunny.obj V=34834 draco qp=10 bytes=35273 bpv=8.10 psnr=78.1dB decode=11.30ms
+stanford-bunny.obj V=34834 draco qp=8 bytes=23892 bpv=5.49 psnr=65.9dB decode=15.59ms
+fandisk.obj V=6475 draco qp=8 bytes=5476 bpv=6.77 psnr=63.5dB decode=3.24ms
+";
+        let r = parse_reference(text, Path::new("d.txt"), "stanford-bunny.obj").unwrap();
+        assert_eq!(r.name, "draco");
+        assert_eq!(r.points.len(), 2);
+        assert_eq!((r.points[0].bytes, r.points[0].bpv), (23892, 5.49));
+        assert_eq!(r.points[1].psnr, 78.1);
+        let e = parse_reference(text, Path::new("d.txt"), "other.obj")
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("lines of 2 meshes"), "{e}");
+        let one = text.lines().take(2).collect::<Vec<_>>().join("\n");
+        let r = parse_reference(&one, Path::new("d.txt"), "bunny-copy.obj").unwrap();
+        assert_eq!(r.points.len(), 2);
+        let e = parse_reference("nothing here\n", Path::new("d.txt"), "x")
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            e.contains("d.txt") && e.contains("no rate-distortion line"),
+            "{e}"
+        );
+        let e = parse_reference("m bpv=x psnr=3dB\n", Path::new("d.txt"), "m")
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("d.txt:1: bad bpv value `x`"), "{e}");
+    }
+}

@@ -1,0 +1,129 @@
+//! `subwave remesh` end to end: JSON keys, the written mesh and base mesh (the written mesh is
+//! accepted by `subwave wavelet`, i.e. has detectable subdivision connectivity), the
+//! non-manifold error and `--repair`, and `subwave bench remesh`.
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+use subwave::io::{read_mesh, write_mesh, Format};
+use subwave::{generate, Mesh};
+
+fn run(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_subwave"))
+        .args(args)
+        .stdin(Stdio::null())
+        .env_remove("RUST_LOG")
+        .output()
+        .expect("cannot start the subwave executable")
+}
+
+fn write(dir: &Path, name: &str, m: &Mesh) -> String {
+    let p = dir.join(name);
+    write_mesh(m, &p, Some(Format::Obj)).unwrap();
+    p.to_str().unwrap().to_string()
+}
+
+#[test]
+fn remesh_writes_a_semi_regular_mesh_and_its_base() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = write(dir.path(), "sphere.obj", &generate::icosphere(3));
+    let out = dir.path().join("out.obj");
+    let o = run(&[
+        "remesh",
+        &input,
+        "-o",
+        out.to_str().unwrap(),
+        "--levels",
+        "2",
+        "--base-faces",
+        "40",
+        "--samples",
+        "5000",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for key in [
+        "method",
+        "base_faces",
+        "levels",
+        "vertices",
+        "faces",
+        "psnr",
+        "rms",
+        "max",
+        "max_relative",
+        "min_angle",
+        "mean_angle",
+        "flipped",
+        "degenerate",
+        "time_ms",
+    ] {
+        assert!(v.get(key).is_some(), "missing key {key} in {v}");
+    }
+    assert_eq!(v["method"], "maps");
+    assert_eq!(v["levels"], 2);
+    let base_faces = v["base_faces"].as_u64().unwrap();
+    assert_eq!(v["faces"].as_u64().unwrap(), base_faces * 16);
+    assert!(v["psnr"].as_f64().unwrap() > 50.0, "{v}");
+    let m = read_mesh(&out, None).unwrap();
+    assert_eq!(m.num_faces() as u64, base_faces * 16);
+    let base = read_mesh(&dir.path().join("out.base.obj"), None).unwrap();
+    assert_eq!(base.num_faces() as u64, base_faces);
+    // The wavelet command detects the hierarchy.
+    let w = run(&["wavelet", out.to_str().unwrap(), "--wavelet", "midpoint"]);
+    assert!(w.status.success(), "{}", String::from_utf8_lossy(&w.stderr));
+}
+
+#[test]
+fn non_manifold_input_fails_with_the_elements_then_repairs() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = write(dir.path(), "bowtie.obj", &generate::bowtie());
+    let o = run(&["remesh", &input, "--levels", "1", "--samples", "0"]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("non-manifold vertex") && err.contains("--repair"),
+        "{err}"
+    );
+    let o = run(&[
+        "remesh",
+        &input,
+        "--levels",
+        "1",
+        "--repair",
+        "--samples",
+        "0",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["repair"]["non_manifold_vertices"], 1);
+    assert_eq!(v["faces"], 8);
+}
+
+#[test]
+fn bench_remesh_reports_stages() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = write(
+        dir.path(),
+        "torus.obj",
+        &generate::torus(1.0, 0.3, 24, 12, true),
+    );
+    let o = run(&[
+        "bench",
+        "remesh",
+        &input,
+        "--levels",
+        "2",
+        "--base-faces",
+        "48",
+        "--runs",
+        "1",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["median_ms"].as_f64().unwrap() > 0.0);
+    assert!(v["stages"]["simplify_ms"].as_f64().is_some());
+}
