@@ -1,7 +1,8 @@
 //! End-to-end tests of the progressive geometry codec (`codec::progressive`).
 
 use subwave::codec::progressive::{
-    decode, encode, inspect, DecodeOptions, EncodeOptions, Layout, TreeDecoder, Wavelet,
+    decode, encode, encode_with_info, inspect, DecodeOptions, EncodeOptions, Layout, TreeDecoder,
+    Wavelet,
 };
 use subwave::codec::quantize::ComponentMode;
 use subwave::generate;
@@ -64,12 +65,12 @@ fn every_wavelet_round_trips_to_the_quantization_error() {
                 bits: 16,
                 ..Default::default()
             };
-            let s = encode(&h, &opts).unwrap();
+            let (s, hs) = encode_with_info(&h, &opts).unwrap();
             let d = full(&s);
             assert!(d.complete);
             assert_eq!(d.mesh.num_vertices(), h.positions.len());
-            assert_eq!(d.mesh.face_indices, h.topology(3).face_vertices);
-            let e = max_err(&d.mesh.positions, &h.positions);
+            assert_eq!(d.mesh.face_indices, hs.topology(3).face_vertices);
+            let e = max_err(&d.mesh.positions, &hs.positions);
             assert!(
                 e < 2e-4,
                 "{wavelet:?} lifted {lifted} {frames:?} {components:?}: {e}"
@@ -83,8 +84,7 @@ fn every_wavelet_round_trips_to_the_quantization_error() {
 
 #[test]
 fn prefixes_improve_and_all_prefixes_of_a_small_stream_decode() {
-    let h = bumpy(2);
-    let s = encode(&h, &EncodeOptions::default()).unwrap();
+    let (s, h) = encode_with_info(&bumpy(2), &EncodeOptions::default()).unwrap();
     let info = inspect(&s).unwrap();
     let min = info.header_bytes + info.base_bytes;
     let mut errors = Vec::new();
@@ -246,7 +246,7 @@ fn quad_hierarchies_round_trip_lossy_and_lossless() {
         .collect();
     let h = Hierarchy::new(&base, 3, Split::Polygons, Some(positions)).unwrap();
     for wavelet in [Wavelet::Linear, Wavelet::Cubic] {
-        let s = encode(
+        let (s, hs) = encode_with_info(
             &h,
             &EncodeOptions {
                 wavelet,
@@ -255,7 +255,7 @@ fn quad_hierarchies_round_trip_lossy_and_lossless() {
         )
         .unwrap();
         let d = full(&s);
-        assert!(max_err(&d.mesh.positions, &h.positions) < 1e-4);
+        assert!(max_err(&d.mesh.positions, &hs.positions) < 1e-4);
         let s = encode(
             &h,
             &EncodeOptions {
@@ -275,17 +275,16 @@ fn quad_hierarchies_round_trip_lossy_and_lossless() {
 
 #[test]
 fn trees_layout_selects_and_adds_trees() {
-    let h = bumpy(3);
     let opts = EncodeOptions {
         layout: Layout::Trees,
         ..Default::default()
     };
-    let s = encode(&h, &opts).unwrap();
+    let (s, h) = encode_with_info(&bumpy(3), &opts).unwrap();
     let info = inspect(&s).unwrap();
     assert_eq!(info.layout, Layout::Trees);
     assert_eq!(info.chunks.len(), 1 + 30);
     let all = full(&s);
-    let embedded = full(&encode(&h, &EncodeOptions::default()).unwrap());
+    let embedded = full(&encode(&bumpy(3), &EncodeOptions::default()).unwrap());
     assert!(all.complete);
     assert!(max_err(&all.mesh.positions, &embedded.mesh.positions) < 1e-12);
     // Only trees 0..5: vertices far from those base edges keep the base-only positions.
@@ -372,5 +371,44 @@ fn golden_bytes_of_a_small_reference_stream() {
     );
     let d = full(&golden);
     assert!(d.complete);
-    assert!(max_err(&d.mesh.positions, &bumpy(2).positions) < 1e-2);
+    let (_, hs) = encode_with_info(&bumpy(2), &EncodeOptions::default()).unwrap();
+    assert!(max_err(&d.mesh.positions, &hs.positions) < 1e-2);
+}
+
+#[test]
+fn open_meshes_round_trip() {
+    // A disk-like patch: boundary edges have three offspring, the base coder closes the hole.
+    let base = generate::triangle_grid(4);
+    let h0 = Hierarchy::new(&base, 3, Split::Triangles, None).unwrap();
+    let positions: Vec<DVec3> = h0
+        .positions
+        .iter()
+        .map(|p| DVec3::new(p.x, p.y, 0.1 * (3.0 * p.x).sin() * (2.0 * p.y).cos()))
+        .collect();
+    let h = Hierarchy::new(&base, 3, Split::Triangles, Some(positions)).unwrap();
+    for layout in [Layout::Embedded, Layout::Trees] {
+        let s = encode(
+            &h,
+            &EncodeOptions {
+                layout,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let d = full(&s);
+        // The base coder renumbers: compare as point sets through the nearest neighbour.
+        let e = d
+            .mesh
+            .positions
+            .iter()
+            .map(|p| {
+                h.positions
+                    .iter()
+                    .map(|q| (*p - *q).length())
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .fold(0.0, f64::max);
+        assert!(e < 1e-3, "{layout:?}: {e}");
+        assert_eq!(d.mesh.num_faces(), h.topology(3).num_faces());
+    }
 }

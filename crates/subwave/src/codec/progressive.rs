@@ -46,11 +46,14 @@
 //! the chunk; nothing is decoded from it.
 //!
 //! # Base-mesh chunk
-//! The base-mesh chunk holds the base faces and the grid-quantized base positions, coded by
-//! [`encode_base`]: per corner one adaptive bit "next new vertex" or the index as an
-//! Elias-gamma integer, then per vertex the three coordinate differences to the previous
-//! vertex (adaptive signed integers). It is a small honest coder, to be replaced by the
-//! connectivity/parallelogram base-mesh coder of `codec::basemesh`.
+//! Lossy streams code the base mesh (faces and the base wavelet coefficients as positions,
+//! `base_bits` per coordinate) with the single-rate coder of [`super::basemesh`]
+//! (valence-driven connectivity, parallelogram prediction). That coder renumbers vertices
+//! and faces, so the encoder re-indexes the hierarchy onto the decoded base order (odd
+//! vertices matched by their parent edges level by level) and transforms it again there.
+//! Lossless streams need the exact integer base coefficients and code them with the small
+//! coder [`encode_base`]: per corner one adaptive bit "next new vertex" or the index as an
+//! Elias-gamma integer, then per vertex the coordinate differences to the previous vertex.
 //!
 //! Position-dependent subdivision masks: the butterfly and Loop tables are built on the
 //! decoded base mesh; they depend on positions only next to tagged corner vertices, which a
@@ -58,6 +61,7 @@
 
 use glam::DVec3;
 
+use super::basemesh::{self, BaseMeshOptions};
 use super::container::{self, ChunkKind, Container, Header};
 use super::forest::Forest;
 use super::quantize::{self, ComponentMode, Grid};
@@ -296,6 +300,8 @@ const F_LOCAL: u8 = 2;
 const F_ALIGNED: u8 = 4;
 const F_CONTEXTS: u8 = 8;
 const F_LOSSLESS: u8 = 16;
+/// The base chunk is a [`super::basemesh`] stream (lossy mode).
+const F_BASEMESH: u8 = 32;
 
 /// A float wavelet transform of a hierarchy.
 enum Transform<'h> {
@@ -406,6 +412,16 @@ fn bbox(p: &[DVec3]) -> [DVec3; 2] {
 /// lossless mode, more than [`MAX_LEVELS`] levels, bits out of range, non-finite positions,
 /// or a mesh beyond [`spiht::MAX_NODES`] coefficients; errors of the wavelet transform.
 pub fn encode(h: &Hierarchy, opts: &EncodeOptions) -> Result<Vec<u8>> {
+    Ok(encode_with_info(h, opts)?.0)
+}
+
+/// [`encode`], also returning the hierarchy in the stream's order: the decoder's mesh is its
+/// finest level (with decoded positions). Lossy streams renumber the base mesh (the base-mesh
+/// coder's traversal order), so this is `h` re-indexed; lossless streams keep `h`'s order.
+///
+/// # Errors
+/// As [`encode`].
+pub fn encode_with_info(h: &Hierarchy, opts: &EncodeOptions) -> Result<(Vec<u8>, Hierarchy)> {
     let l = h.levels();
     if l as u32 > MAX_LEVELS {
         return Err(Error::InvalidArgument(format!(
@@ -450,7 +466,7 @@ pub fn encode(h: &Hierarchy, opts: &EncodeOptions) -> Result<Vec<u8>> {
         opts.frames
     };
     let lifted = opts.lifted && matches!(opts.wavelet, Wavelet::Midpoint | Wavelet::Butterfly);
-    let forest = Forest::new(h)?;
+    let mut forest = Forest::new(h)?;
     if forest.num_nodes > spiht::MAX_NODES {
         return Err(Error::InvalidArgument(format!(
             "{} coefficients: streams hold at most {}",
@@ -460,6 +476,8 @@ pub fn encode(h: &Hierarchy, opts: &EncodeOptions) -> Result<Vec<u8>> {
     }
     let v0 = h.num_vertices(0);
     let bb = bbox(&h.positions);
+    let mut base_chunk: Option<Vec<u8>> = None;
+    let mut reindexed: Option<Hierarchy> = None;
     let (grid, base_q, mags, steps) = if opts.lossless {
         let grid = Grid::new(bb[0], bb[1], opts.bits);
         let mut data: Vec<[i64; 3]> = h
@@ -484,16 +502,30 @@ pub fn encode(h: &Hierarchy, opts: &EncodeOptions) -> Result<Vec<u8>> {
         }
         (grid, base_q, Magnitudes::new(&forest, mag, neg), [1.0; 3])
     } else {
+        // The base mesh coder renumbers the base: code the coarse positions first, then
+        // re-index the hierarchy to the decoded base order and transform again there.
         let mut flat = h.positions.clone();
         Transform::new(h, opts.wavelet, lifted, frame)?.forward(&mut flat)?;
-        let bbase = bbox(&flat[..v0]);
-        let lo = bbase[0].min(bb[0]);
-        let hi = bbase[1].max(bb[1]);
-        let grid = Grid::new(lo, hi, opts.base_bits);
-        let base_q: Vec<[i64; 3]> = flat[..v0]
-            .iter()
-            .map(|&p| grid.quantize(p).map(i64::from))
-            .collect();
+        let mut coarse = h.base.clone();
+        coarse.positions = flat[..v0].to_vec();
+        coarse.edge_tags.clear();
+        coarse.vertex_tags.clear();
+        let enc = basemesh::encode_with_info(
+            &coarse,
+            &BaseMeshOptions {
+                position_bits: opts.base_bits.clamp(8, 30),
+            },
+        )?;
+        let mut new_base = enc.decoded.clone();
+        new_base.edge_tags.clear();
+        new_base.vertex_tags.clear();
+        let nh = reindex(h, &new_base, &enc.vertex_map)?;
+        let mut flat = nh.positions.clone();
+        Transform::new(&nh, opts.wavelet, lifted, frame)?.forward(&mut flat)?;
+        base_chunk = Some(enc.bytes);
+        let nforest = Forest::new(&nh)?;
+        reindexed = Some(nh);
+        let grid = Grid::new(bb[0], bb[1], opts.base_bits);
         let details = &flat[v0..];
         let steps = quantize::steps(details, opts.bits, opts.components);
         let mut mag = Vec::with_capacity(3 * details.len());
@@ -505,14 +537,18 @@ pub fn encode(h: &Hierarchy, opts: &EncodeOptions) -> Result<Vec<u8>> {
                 neg.push(s);
             }
         }
-        (grid, base_q, Magnitudes::new(&forest, mag, neg), steps)
+        let m = Magnitudes::new(&nforest, mag, neg);
+        forest = nforest;
+        (grid, Vec::new(), m, steps)
     };
-    let mut chunks = vec![(
-        ChunkKind::Base,
-        0u32,
-        encode_base(&h.base, &base_q),
-        Vec::new(),
-    )];
+    // The hierarchy the coefficients follow (re-indexed to the base coder's order).
+    let h = reindexed.as_ref().unwrap_or(h);
+    let stream_hierarchy = h.clone();
+    let base_bytes = match base_chunk {
+        Some(b) => b,
+        None => encode_base(&h.base, &base_q),
+    };
+    let mut chunks = vec![(ChunkKind::Base, 0u32, base_bytes, Vec::new())];
     let planes = spiht::num_planes(mags.top);
     match opts.layout {
         Layout::Embedded => {
@@ -559,6 +595,8 @@ pub fn encode(h: &Hierarchy, opts: &EncodeOptions) -> Result<Vec<u8>> {
     }
     if opts.lossless {
         flags |= F_LOSSLESS;
+    } else {
+        flags |= F_BASEMESH;
     }
     let header = Header {
         wavelet: opts.wavelet.id(),
@@ -586,7 +624,58 @@ pub fn encode(h: &Hierarchy, opts: &EncodeOptions) -> Result<Vec<u8>> {
         base_corners: h.base.face_indices.len() as u32,
         num_trees: forest.num_trees as u32,
     };
-    container::write(&header, &chunks)
+    Ok((container::write(&header, &chunks)?, stream_hierarchy))
+}
+
+/// Hierarchy `h` re-indexed onto `base`, the same base mesh renumbered (new vertex `i` is
+/// old vertex `vertex_map[i]`; faces reordered, possibly cyclically rotated): the finest
+/// positions moved to the new contract order, matching odd vertices by their parent edge
+/// (and, for polygon splits, face points by their parent face) level by level.
+fn reindex(h: &Hierarchy, base: &Mesh, vertex_map: &[u32]) -> Result<Hierarchy> {
+    let mut nh = Hierarchy::new(base, h.levels() as u32, h.split, None)?;
+    let bad = || Error::InvalidArgument("re-indexing: the base meshes differ".into());
+    if vertex_map.len() != h.num_vertices(0) || nh.num_vertices(h.levels()) != h.positions.len() {
+        return Err(bad());
+    }
+    let mut map: Vec<u32> = vertex_map.to_vec();
+    for j in 0..h.levels() {
+        let (tn, to) = (nh.topology(j), h.topology(j));
+        let (nv, onv) = (tn.num_vertices as usize, to.num_vertices as usize);
+        let (ne, one) = (tn.num_edges(), to.num_edges());
+        let mut next = map.clone();
+        next.resize(nh.num_vertices(j + 1), u32::MAX);
+        for e in 0..ne {
+            let [a, b] = tn.edge_vertices[e];
+            let oe = to
+                .find_edge(map[a as usize], map[b as usize])
+                .ok_or_else(bad)?;
+            next[nv + e] = (onv + oe as usize) as u32;
+        }
+        if h.split == Split::Polygons {
+            for f in 0..tn.num_faces() {
+                let fv = tn.face_vertices(f);
+                let (a, b) = (map[fv[0] as usize], map[fv[1] as usize]);
+                let g = to
+                    .vertex_faces(a as usize)
+                    .iter()
+                    .copied()
+                    .find(|&g| {
+                        let ov = to.face_vertices(g as usize);
+                        ov.len() == fv.len()
+                            && ov.contains(&b)
+                            && fv.iter().all(|&x| ov.contains(&map[x as usize]))
+                    })
+                    .ok_or_else(bad)?;
+                next[nv + ne + f] = (onv + one + g as usize) as u32;
+            }
+        }
+        if next.contains(&u32::MAX) {
+            return Err(bad());
+        }
+        map = next;
+    }
+    nh.positions = map.iter().map(|&o| h.positions[o as usize]).collect();
+    Ok(nh)
 }
 
 /// Codes the base faces and integer positions (the base-mesh chunk; see the module
@@ -744,7 +833,7 @@ fn parse(bytes: &[u8]) -> Result<Parsed> {
             format!("{} levels (at most {MAX_LEVELS})", h.levels),
         ));
     }
-    if h.flags & !(F_LIFTED | F_LOCAL | F_ALIGNED | F_CONTEXTS | F_LOSSLESS) != 0 {
+    if h.flags & !(F_LIFTED | F_LOCAL | F_ALIGNED | F_CONTEXTS | F_LOSSLESS | F_BASEMESH) != 0 {
         return Err(derr(11, format!("unknown flags {:#x}", h.flags)));
     }
     let top = h.top.map(i32::from);
@@ -872,7 +961,10 @@ fn fine_vertices(h: &Header, split: Split) -> u64 {
 struct Setup {
     hierarchy: Hierarchy,
     forest: Forest,
+    /// Integer base coefficients (lossless mode).
     base_q: Vec<[i64; 3]>,
+    /// Base coefficients (lossy mode).
+    base_positions: Vec<DVec3>,
 }
 
 fn setup(p: &Parsed, bytes: &[u8]) -> Result<Setup> {
@@ -888,21 +980,40 @@ fn setup(p: &Parsed, bytes: &[u8]) -> Result<Setup> {
             ),
         ));
     }
-    let (mut base, base_q) = decode_base(
-        data,
-        h.base_vertices as usize,
-        h.base_faces as usize,
-        h.base_corners as usize,
-        p.split == Split::Triangles,
-        off,
-    )?;
-    let grid = Grid {
-        origin: h.grid_origin,
-        step: h.grid_step,
+    let (base, base_q) = if p.flags & F_BASEMESH != 0 {
+        let mut m = basemesh::decode(data)
+            .map_err(|e| derr(off, format!("{}: {e}", p.c.chunks[0].name(0))))?;
+        if m.num_vertices() != h.base_vertices as usize
+            || m.num_faces() != h.base_faces as usize
+            || m.face_indices.len() != h.base_corners as usize
+        {
+            return Err(derr(
+                off,
+                "the base mesh chunk does not match the header's base counts",
+            ));
+        }
+        m.edge_tags.clear();
+        m.vertex_tags.clear();
+        (m, Vec::new())
+    } else {
+        let (mut m, q) = decode_base(
+            data,
+            h.base_vertices as usize,
+            h.base_faces as usize,
+            h.base_corners as usize,
+            p.split == Split::Triangles,
+            off,
+        )?;
+        let grid = Grid {
+            origin: h.grid_origin,
+            step: h.grid_step,
+        };
+        if p.flags & F_LOSSLESS == 0 {
+            m.positions = q.iter().map(|&q| grid.dequantize(q)).collect();
+        }
+        (m, q)
     };
-    if p.flags & F_LOSSLESS == 0 {
-        base.positions = base_q.iter().map(|&q| grid.dequantize(q)).collect();
-    }
+    let base_positions = base.positions.clone();
     let hierarchy = Hierarchy::new(&base, h.levels as u32, p.split, None)
         .map_err(|e| derr(off, format!("base mesh chunk: {e}")))?;
     let forest = Forest::new(&hierarchy)?;
@@ -922,6 +1033,7 @@ fn setup(p: &Parsed, bytes: &[u8]) -> Result<Setup> {
         hierarchy,
         forest,
         base_q,
+        base_positions,
     })
 }
 
@@ -1110,7 +1222,7 @@ fn reconstruct_with(p: &Parsed, s: &Setup, coefs: &Coefficients, t: &AnyTransfor
         }
         AnyTransform::Float(t) => {
             let mut flat = Vec::with_capacity(v0 + s.forest.num_nodes);
-            flat.extend(s.base_q.iter().map(|&q| grid.dequantize(q)));
+            flat.extend_from_slice(&s.base_positions);
             for n in 0..s.forest.num_nodes {
                 let mut d = DVec3::ZERO;
                 for c in 0..3 {
