@@ -374,6 +374,29 @@ pub fn remesh_with_progress(
         let topo = &h.topologies[opts.levels as usize];
         resample::relax(&mut fine, topo, &fixed, &proj, opts.relax_iterations, 0.5);
         let left = resample::untangle(&mut fine, topo, &fixed, &proj, 6);
+        if tracing::enabled!(tracing::Level::DEBUG) {
+            let flips = resample::flipped_faces(topo, &fine, &proj);
+            let nbv = h.base.positions.len() as u32;
+            let mut at_base = 0;
+            let mut at_fixed = 0;
+            let mut at_miss = 0;
+            for (f, &fl) in flips.iter().enumerate() {
+                if !fl {
+                    continue;
+                }
+                let fv = topo.face_vertices(f);
+                if fv.iter().any(|&v| v < nbv) {
+                    at_base += 1;
+                }
+                if fv.iter().any(|&v| fixed[v as usize]) {
+                    at_fixed += 1;
+                }
+                if fv.iter().any(|&v| located[v as usize].inside < -1e-6) {
+                    at_miss += 1;
+                }
+            }
+            tracing::debug!(left, at_base, at_fixed, at_miss, "flipped faces");
+        }
         if left > 0 {
             warnings.push(format!("{left} face(s) still flipped after untangling"));
         }
