@@ -115,7 +115,8 @@ mod tests {
 
     #[test]
     fn irregular_input_is_remeshed() {
-        let m = generate::torus(1.0, 0.4, 24, 12, true);
+        // Odd grid sizes: no 1-to-4 structure (a regular even grid would be detected).
+        let m = generate::torus(1.0, 0.4, 25, 13, true);
         let opts = PrepareOptions {
             levels: Some(2),
             base_faces: Some(64),
