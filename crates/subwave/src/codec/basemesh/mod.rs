@@ -128,7 +128,7 @@ impl Quantization {
 /// Sizes of the parts of a stream, in bits.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Stats {
-    /// The connectivity chunk (with its share of nothing else).
+    /// The connectivity chunk.
     pub connectivity_bits: u64,
     /// The positions chunk.
     pub position_bits: u64,
