@@ -36,11 +36,11 @@
 //! [`Encoded::face_map`] give, for each decoded vertex and face, the input one. Preserved
 //! exactly: the faces (each possibly cyclically rotated, never reversed), hence orientation,
 //! boundaries and components; every vertex, including those no face uses (they come last, in
-//! input order); the crease and corner tags, canonicalised: one edge tag per tagged edge (the
-//! last tag of an edge wins, as in [`crate::Topology`]), in decoded edge order (first
-//! appearance) with the edge's vertices in their first traversal direction; one vertex tag per
-//! tagged vertex in vertex order; tags of sharpness ≤ 0 (or NaN) and edge tags whose vertices
-//! share no edge are dropped. Colours, texture coordinates and face-varying data are not
+//! Morton order of their quantized positions); the crease and corner tags, canonicalised:
+//! one edge tag per tagged edge (the last tag of an edge wins, as in [`crate::Topology`]), in
+//! decoded edge order (first appearance) with the edge's vertices in their first traversal
+//! direction; one vertex tag per tagged vertex in vertex order; tags of sharpness ≤ 0 (or
+//! NaN) and edge tags whose vertices share no edge are dropped. Colours, texture coordinates and face-varying data are not
 //! coded. Positions are quantized: see [`Quantization`].
 
 pub mod connectivity;
@@ -128,7 +128,7 @@ impl Quantization {
 /// Sizes of the parts of a stream, in bits.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Stats {
-    /// The connectivity chunk (with its share of nothing else).
+    /// The connectivity chunk.
     pub connectivity_bits: u64,
     /// The positions chunk.
     pub position_bits: u64,
@@ -206,6 +206,10 @@ pub fn encode_with_info(mesh: &Mesh, opts: &BaseMeshOptions) -> Result<Encoded> 
 
     // Positions.
     let quantization = quantization_of(mesh, opts.position_bits);
+    // Unreferenced vertices in Morton order of their grid points (ties in input order), so
+    // that each is close to the previous one (their predictor).
+    vertex_map[nref..]
+        .sort_by_cached_key(|&v| morton(quantization.quantize(mesh.positions[v as usize])));
     let quantized: Vec<[u32; 3]> = vertex_map
         .iter()
         .map(|&v| quantization.quantize(mesh.positions[v as usize]))
@@ -362,6 +366,17 @@ pub fn decode_quantized(bytes: &[u8]) -> Result<(Mesh, Vec<[u32; 3]>, Quantizati
         message: format!("connectivity chunk decodes to an invalid mesh: {e}"),
     })?;
     Ok((mesh, quantized, q))
+}
+
+/// The Morton (Z-order) code of a grid point (30 bits per axis interleaved).
+fn morton(q: [u32; 3]) -> u128 {
+    let mut m = 0u128;
+    for bit in (0..30).rev() {
+        for &x in &q {
+            m = (m << 1) | ((x >> bit) & 1) as u128;
+        }
+    }
+    m
 }
 
 /// The quantization of `mesh`'s vertices with `bits` bits.

@@ -113,7 +113,7 @@ fn roundtrip_several_components_and_isolated_vertices() {
         *v += 1;
     }
     let e = check_roundtrip(&m, 16);
-    // Unreferenced vertices come last, in input order.
+    // Unreferenced vertices come last, in Morton order: (-1, 2, 3) before (9, 9, 9).
     let n = m.num_vertices();
     assert_eq!(&e.vertex_map[n - 2..], &[0, n as u32 - 1]);
 }
