@@ -486,7 +486,7 @@ pub fn read(bytes: &[u8]) -> Result<Container> {
         let mut marks = Vec::with_capacity(nm);
         let mut prev = 0u32;
         for _ in 0..nm {
-            let m = prev.checked_add(r.varint()?).unwrap_or(u32::MAX);
+            let m = prev.saturating_add(r.varint()?);
             prev = m;
             if m > len {
                 return Err(Error::Decode {
