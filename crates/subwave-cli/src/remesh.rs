@@ -54,7 +54,7 @@ pub struct RemeshArgs {
     #[arg(long, value_enum, default_value = "auto")]
     pub method: MethodArg,
     /// Relaxation iterations on the finest level.
-    #[arg(long, value_name = "N", default_value_t = 4)]
+    #[arg(long, value_name = "N", default_value_t = 6)]
     pub relax: u32,
     /// Where to write the base mesh (default: OUT with `.base` before the extension).
     #[arg(long, value_name = "PATH")]

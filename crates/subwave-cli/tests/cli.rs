@@ -630,11 +630,32 @@ fn check_demo_folder(dir: &Path, vertices: i64) {
         serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap();
     assert_eq!(field(&report["mesh"], "vertices"), vertices, "{report:#}");
     assert_eq!(report["mesh"]["genus"].as_u64(), Some(0));
+    // Three meshes, the stream, 8 decoded prefixes and the plot (report.json itself is
+    // written after the list).
     assert_eq!(
         report["outputs"].as_array().map(Vec::len),
-        Some(3),
+        Some(13),
         "{report:#}"
     );
+    // The progressive stream: its prefixes decode to meshes of the input's size whose PSNR
+    // grows with the bytes, up to near-lossless at the whole stream.
+    let stream_len = std::fs::metadata(dir.join("five-blobs.swv")).unwrap().len();
+    assert_eq!(report["stream"]["bytes"].as_u64(), Some(stream_len));
+    let rd = report["rate_distortion"]
+        .as_array()
+        .expect("rate_distortion");
+    assert_eq!(rd.len(), 8, "{report:#}");
+    let psnr: Vec<f64> = rd.iter().map(|p| p["psnr"].as_f64().unwrap()).collect();
+    assert!(psnr.windows(2).all(|w| w[1] >= w[0]), "{psnr:?}");
+    assert!(psnr[7] > 90.0 && psnr[0] < psnr[7] - 30.0, "{psnr:?}");
+    assert_eq!(rd[7]["bytes"].as_u64(), Some(stream_len));
+    for p in rd {
+        let name = format!("five-blobs-{:07}B.obj", p["bytes"].as_u64().unwrap());
+        let j = info_json(dir.join(&name).to_str().unwrap());
+        assert_eq!(field(&j, "vertices"), vertices, "{name}");
+    }
+    let svg = std::fs::read_to_string(dir.join("rate-distortion.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("polyline"), "{svg}");
     // The written mesh reads back with the same counts.
     let j = info_json(dir.join("five-blobs.obj").to_str().unwrap());
     assert_eq!(field(&j, "vertices"), vertices);
@@ -669,6 +690,8 @@ fn demo_writes_its_files() {
         "report.json",
         "total",
         "genus",
+        "five-blobs.swv",
+        "progressive decoding",
     ] {
         assert!(out.contains(needle), "missing `{needle}` in:\n{out}");
     }

@@ -111,7 +111,7 @@ impl Default for RemeshOptions {
             quads: false,
             sharp_angle: None,
             repair: false,
-            relax_iterations: 4,
+            relax_iterations: 6,
             method: MethodChoice::Auto,
         }
     }
@@ -374,6 +374,29 @@ pub fn remesh_with_progress(
         let topo = &h.topologies[opts.levels as usize];
         resample::relax(&mut fine, topo, &fixed, &proj, opts.relax_iterations, 0.5);
         let left = resample::untangle(&mut fine, topo, &fixed, &proj, 6);
+        if tracing::enabled!(tracing::Level::DEBUG) {
+            let flips = resample::flipped_faces(topo, &fine, &proj);
+            let nbv = h.base.positions.len() as u32;
+            let mut at_base = 0;
+            let mut at_fixed = 0;
+            let mut at_miss = 0;
+            for (f, &fl) in flips.iter().enumerate() {
+                if !fl {
+                    continue;
+                }
+                let fv = topo.face_vertices(f);
+                if fv.iter().any(|&v| v < nbv) {
+                    at_base += 1;
+                }
+                if fv.iter().any(|&v| fixed[v as usize]) {
+                    at_fixed += 1;
+                }
+                if fv.iter().any(|&v| located[v as usize].inside < -1e-6) {
+                    at_miss += 1;
+                }
+            }
+            tracing::debug!(left, at_base, at_fixed, at_miss, "flipped faces");
+        }
         if left > 0 {
             warnings.push(format!("{left} face(s) still flipped after untangling"));
         }
@@ -439,8 +462,22 @@ fn chain_polylines(
             }
         }
     }
+    // Sorted by their parameter, re-parameterized by arc length so resampled points spread
+    // evenly along the curve.
     for line in out.values_mut() {
         line.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let mut acc = 0.0;
+        let mut arc = Vec::with_capacity(line.len());
+        arc.push(0.0);
+        for w in line.windows(2) {
+            acc += w[0].1.distance(w[1].1);
+            arc.push(acc);
+        }
+        if acc > 0.0 {
+            for (x, a) in line.iter_mut().zip(arc) {
+                x.0 = a / acc;
+            }
+        }
     }
     out
 }

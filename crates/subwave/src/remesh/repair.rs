@@ -22,7 +22,8 @@ use crate::{MeshError, Result};
 /// What [`prepare`] changed in the input.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct RepairReport {
-    /// Faces removed because they repeat a vertex or have (nearly) zero area.
+    /// Faces removed because they repeat a vertex, have (nearly) zero area, or duplicate an
+    /// earlier face's vertex set.
     pub degenerate_faces: usize,
     /// Vertices no face used (dropped).
     pub unreferenced_vertices: usize,
@@ -37,7 +38,8 @@ pub struct RepairReport {
 }
 
 /// The triangles of `mesh` ready for remeshing: polygons fanned, degenerate triangles (a
-/// repeated vertex, or area below `1e-14 · diagonal²`) and unreferenced vertices removed and,
+/// repeated vertex, area below `1e-14 · diagonal²`, or the vertex set of an earlier triangle)
+/// and unreferenced vertices removed and,
 /// if `repair`, non-manifold edges and vertices cut (see the module documentation).
 ///
 /// Returns the positions, the triangles and the report.
@@ -54,7 +56,15 @@ pub fn prepare(mesh: &Mesh, repair: bool) -> Result<(Vec<DVec3>, Vec<[u32; 3]>, 
     let min_area2 = (1e-14 * diag * diag).powi(2);
     let (tris, _) = mesh.triangulate();
     let mut kept = Vec::with_capacity(tris.len());
+    let mut seen = std::collections::HashSet::with_capacity(tris.len());
     for t in tris {
+        // A second face on the same three vertices (either orientation) is degenerate too.
+        let mut sorted = t;
+        sorted.sort_unstable();
+        if !seen.insert(sorted) {
+            report.degenerate_faces += 1;
+            continue;
+        }
         let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
         let degenerate = t[0] == t[1]
             || t[1] == t[2]

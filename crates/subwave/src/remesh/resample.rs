@@ -292,9 +292,17 @@ pub fn flipped_faces(topo: &Topology, pos: &[DVec3], proj: &Projector) -> Vec<bo
         .collect()
 }
 
-/// Number of faces around `v` that are flipped against the input when `v` is at `p`.
-fn flips_around(v: usize, p: DVec3, topo: &Topology, pos: &[DVec3], proj: &Projector) -> usize {
+/// Number of faces around `v` that are flipped against the input when `v` is at `p`, and
+/// the smallest angle of those faces (degrees).
+fn flips_around(
+    v: usize,
+    p: DVec3,
+    topo: &Topology,
+    pos: &[DVec3],
+    proj: &Projector,
+) -> (usize, f64) {
     let mut count = 0;
+    let mut min_angle = 180.0f64;
     for &f in topo.vertex_faces(v) {
         let fv = topo.face_vertices(f as usize);
         let m = fv.len();
@@ -317,16 +325,36 @@ fn flips_around(v: usize, p: DVec3, topo: &Topology, pos: &[DVec3], proj: &Proje
         if n.dot(proj.normals[tri as usize]) <= 0.0 {
             count += 1;
         }
+        for i in 0..m {
+            let a = q((i + 1) % m) - q(i);
+            let b = q((i + m - 1) % m) - q(i);
+            let (la, lb) = (a.length(), b.length());
+            let ang = if la > 0.0 && lb > 0.0 {
+                (a.dot(b) / (la * lb)).clamp(-1.0, 1.0).acos().to_degrees()
+            } else {
+                0.0
+            };
+            min_angle = min_angle.min(ang);
+        }
     }
-    count
+    (count, min_angle)
 }
 
-/// Untangling: each free vertex of a flipped face tries the closest input point of the
-/// centroid of its neighbours (a full Laplacian step, which opens a fold) and of the
-/// midpoints between it and its current position, and takes the first that lowers the number
-/// of flipped faces around it; vertices stay on the input. Gauss-Seidel over the flipped
-/// region, at most `rounds` rounds, each widening the region by one ring. Returns the number
-/// of flipped faces left.
+/// Whether a face is flipped against the input or has an angle below `min_degrees`.
+fn bad_face(fv: &[u32], pos: &[DVec3], proj: &Projector, min_degrees: f64) -> bool {
+    let n = face_normal(fv, pos);
+    let c = fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64;
+    let (_, tri) = proj.closest(c);
+    n.dot(proj.normals[tri as usize]) <= 0.0 || super::quality::min_angle(fv, pos) < min_degrees
+}
+
+/// Untangling: each free vertex of a flipped face, or of a face with an angle below 2°, tries
+/// the closest input point of the centroid of its neighbours (a full Laplacian step, which
+/// opens a fold) and of points between it and its current position, and takes the first that
+/// lowers the number of flipped faces around it (or keeps it and raises their smallest
+/// angle); vertices stay on the input. Gauss-Seidel over the bad region, at most `rounds`
+/// rounds, each widening the region by one ring (up to three). Returns the number of flipped
+/// faces left.
 pub fn untangle(
     pos: &mut [DVec3],
     topo: &Topology,
@@ -334,7 +362,11 @@ pub fn untangle(
     proj: &Projector,
     rounds: u32,
 ) -> usize {
-    let mut flipped = flipped_faces(topo, pos, proj);
+    const BAD_ANGLE: f64 = 2.0;
+    let mut flipped: Vec<bool> = (0..topo.num_faces())
+        .into_par_iter()
+        .map(|f| bad_face(topo.face_vertices(f), pos, proj, BAD_ANGLE))
+        .collect();
     let mut count = flipped.iter().filter(|&&f| f).count();
     for radius in 1..=rounds {
         if count == 0 {
@@ -372,20 +404,45 @@ pub fn untangle(
                 .sum::<DVec3>()
                 / edges.len() as f64;
             let now = flips_around(v, pos[v], topo, pos, proj);
-            if now == 0 {
+            if now.0 == 0 && now.1 >= BAD_ANGLE {
                 continue;
             }
             let p0 = pos[v];
             for t in [1.0, 0.5, 0.25] {
                 let (q, _) = proj.closest(p0.lerp(c, t));
-                if flips_around(v, q, topo, pos, proj) < now {
+                let new = flips_around(v, q, topo, pos, proj);
+                if new.0 < now.0 || (new.0 == now.0 && new.1 > now.1) {
                     pos[v] = q;
                     break;
                 }
             }
         }
-        flipped = flipped_faces(topo, pos, proj);
+        // Re-test only the faces around the region.
+        let mut faces: Vec<u32> = Vec::new();
+        for (v, &r) in region.iter().enumerate() {
+            if r {
+                faces.extend_from_slice(topo.vertex_faces(v));
+            }
+        }
+        faces.sort_unstable();
+        faces.dedup();
+        let cur: &[DVec3] = pos;
+        let updates: Vec<(u32, bool)> = faces
+            .par_iter()
+            .map(|&f| {
+                (
+                    f,
+                    bad_face(topo.face_vertices(f as usize), cur, proj, BAD_ANGLE),
+                )
+            })
+            .collect();
+        for (f, flip) in updates {
+            flipped[f as usize] = flip;
+        }
         count = flipped.iter().filter(|&&f| f).count();
     }
-    count
+    flipped_faces(topo, pos, proj)
+        .iter()
+        .filter(|&&f| f)
+        .count()
 }

@@ -340,6 +340,21 @@ impl State<'_> {
         if after < self.comp_target[c] || (self.comp_closed[c] && after < 4) || after < 1 {
             return false;
         }
+        // No new face may duplicate an existing one (a "pillow" of two faces on the same
+        // three vertices).
+        for &f in &self.vfaces[ui] {
+            let t = self.faces[f as usize];
+            if t.contains(&v) {
+                continue;
+            }
+            let others: Vec<u32> = t.iter().copied().filter(|&w| w != u).collect();
+            if self.vfaces[vi].iter().any(|&g| {
+                let tg = &self.faces[g as usize];
+                tg.contains(&others[0]) && tg.contains(&others[1])
+            }) {
+                return false;
+            }
+        }
         // No face flips or degenerates.
         let pv = self.pos[vi];
         for &f in &self.vfaces[ui] {
@@ -374,6 +389,27 @@ impl State<'_> {
         for i in 0..nu.len() {
             let v = nu[i];
             if !self.valid(u, v, nu, scratch) {
+                continue;
+            }
+            let c = self.cost(u, v);
+            if best.is_none_or(|(bc, _)| c < bc) {
+                best = Some((c, v));
+            }
+        }
+        best
+    }
+
+    /// The cheapest collapse out of `u` among those the chain rules allow, without the
+    /// (costlier) topological and geometric checks, which run when it leaves the queue.
+    fn best_unchecked(&self, u: u32, nu: &mut Vec<u32>) -> Option<(f64, u32)> {
+        let ui = u as usize;
+        if !self.alive[ui] || self.pinned[ui] || self.chain_deg[ui] > 2 || self.chain_deg[ui] == 1 {
+            return None;
+        }
+        self.neighbors(u, nu);
+        let mut best: Option<(f64, u32)> = None;
+        for &v in nu.iter() {
+            if self.chain_deg[ui] == 2 && !self.chain.contains(&key(u, v)) {
                 continue;
             }
             let c = self.cost(u, v);
@@ -778,7 +814,7 @@ pub fn simplify(
     let mut heap = BinaryHeap::with_capacity(nv);
     let (mut nu, mut scratch) = (Vec::new(), Vec::new());
     for u in 0..nv as u32 {
-        if let Some((cost, v)) = st.best(u, &mut nu, &mut scratch) {
+        if let Some((cost, v)) = st.best_unchecked(u, &mut nu) {
             heap.push(Entry {
                 cost,
                 u,
@@ -820,7 +856,7 @@ pub fn simplify(
         for &w in &ring {
             let wi = w as usize;
             st.stamp[wi] += 1;
-            if let Some((cost, t)) = st.best(w, &mut nu, &mut scratch) {
+            if let Some((cost, t)) = st.best_unchecked(w, &mut nu) {
                 heap.push(Entry {
                     cost,
                     u: w,

@@ -444,8 +444,8 @@ impl Models {
         Models {
             degree_same: [Bit::new(); 3],
             degree: [UInt::new(), UInt::new(), UInt::new()],
-            fwd_first: vec![Bit::new(); 3 * 2 * (CNT_CAP + 1)],
-            back_first: vec![Bit::new(); 3 * 2 * (CNT_CAP + 1)],
+            fwd_first: vec![Bit::new(); 3 * 3 * 2 * (CNT_CAP + 1)],
+            back_first: vec![Bit::new(); 3 * 3 * 2 * (CNT_CAP + 1)],
             fwd_more: [Bit::new(); 12],
             back_more: [Bit::new(); 12],
             closure: [Bit::new(); 3],
@@ -478,7 +478,14 @@ struct State {
     prev_degree: u32,
     /// Dummy vertices still to come.
     holes_left: u64,
+    /// Valence (faces) of the last vertex completed.
+    last_valence: u32,
+    /// Whether `last_valence` is a context (meshes of [`VALENCE_CONTEXT_VERTICES`] or more).
+    valence_context: bool,
 }
+
+/// Vertices (with the dummies) from which the last valence is a context.
+pub(crate) const VALENCE_CONTEXT_VERTICES: u64 = 16_384;
 
 /// The encoder's knowledge of a face.
 #[derive(Default)]
@@ -557,6 +564,13 @@ fn code_face<I: BitIo>(
     }
     let k = d - 2;
     let c = degree_class(d);
+    // Large meshes: also in the context of the last completed vertex's valence (≤ 5, 6, ≥ 7;
+    // Touma–Gotsman's observation that valences are locally correlated).
+    let lv = if st.valence_context {
+        (st.last_valence.clamp(5, 7) - 5) as usize
+    } else {
+        0
+    };
     // Forward run (and closure).
     let mut f = 0u32;
     let mut closure = false;
@@ -572,11 +586,14 @@ fn code_face<I: BitIo>(
         }
         let ctx = if f == 0 {
             let cnt = (st.cnt[v as usize] as usize).min(CNT_CAP);
-            &mut m.fwd_first[(c * 2 + dv as usize) * (CNT_CAP + 1) + cnt]
+            &mut m.fwd_first[((lv * 3 + c) * 2 + dv as usize) * (CNT_CAP + 1) + cnt]
         } else {
             &mut m.fwd_more[c * 4 + (f as usize).min(3)]
         };
         if io.bit(ctx, truth.f > f) {
+            if f == 0 && !dv {
+                st.last_valence = st.cnt[v as usize] + 1;
+            }
             f += 1;
         } else {
             break;
@@ -596,11 +613,14 @@ fn code_face<I: BitIo>(
     while b < k - f && b + f + 3 <= l {
         let ctx = if b == 0 {
             let cnt = (st.cnt[u as usize] as usize).min(CNT_CAP);
-            &mut m.back_first[(c * 2 + du as usize) * (CNT_CAP + 1) + cnt]
+            &mut m.back_first[((lv * 3 + c) * 2 + du as usize) * (CNT_CAP + 1) + cnt]
         } else {
             &mut m.back_more[c * 4 + (b as usize).min(3)]
         };
         if io.bit(ctx, truth.b > b) {
+            if b == 0 && !du {
+                st.last_valence = st.cnt[u as usize] + 1;
+            }
             b += 1;
         } else {
             break;
@@ -825,6 +845,10 @@ pub(crate) fn encode(mesh: &Mesh, enc: &mut Encoder) -> Result<EncodedConnectivi
         all_triangles: mesh.is_triangle_mesh(),
         prev_degree: 3,
         holes_left: holes as u64,
+        last_valence: 6,
+        // Referenced vertices and dummies: what the decoder knows.
+        valence_context: (mesh.referenced().iter().filter(|&&r| r).count() + holes as usize) as u64
+            >= VALENCE_CONTEXT_VERTICES,
     };
     let mut m = Models::new();
     enc.bit(&mut Bit::new(), st.all_triangles);
@@ -1072,6 +1096,8 @@ pub(crate) fn decode(
         all_triangles: false,
         prev_degree: 3,
         holes_left: declared.holes,
+        last_valence: 6,
+        valence_context: aug_vertices >= VALENCE_CONTEXT_VERTICES,
     };
     let mut m = Models::new();
     st.all_triangles = dec.bit(&mut Bit::new());

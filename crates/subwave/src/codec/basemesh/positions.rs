@@ -13,7 +13,7 @@
 //! - otherwise the average of the known neighbours, else the previous vertex.
 //!
 //! Residuals are coded per axis as a magnitude (adaptive Elias-gamma, [`UInt`]) and a raw
-//! sign bit, in contexts of the predictor kind, the axis, and the expected magnitude: the
+//! sign bit, in contexts of the axis and of the expected magnitude: the
 //! average bit length of the residuals of the known neighbours, averaged with that of the
 //! axes of the same vertex already coded (flat regions code small residuals cheaply, detailed
 //! ones do not pollute their statistics).
@@ -25,8 +25,6 @@ use super::ChunkError;
 
 const NONE: u32 = u32::MAX;
 
-/// Predictor kinds.
-const KINDS: usize = 3;
 /// Magnitude classes of the neighbourhood's residuals.
 const MAGS: usize = 14;
 
@@ -63,15 +61,9 @@ impl Predictor {
         }
     }
 
-    /// The prediction of vertex `w` from vertices `< w`, its kind and the magnitude class of
+    /// The prediction of vertex `w` from vertices `< w` and the magnitude class of
     /// the known neighbours' residuals.
-    fn predict(
-        &self,
-        w: u32,
-        q: &[[u32; 3]],
-        res_mag: &[u8],
-        maxq: i64,
-    ) -> ([i64; 3], usize, usize) {
+    fn predict(&self, w: u32, q: &[[u32; 3]], res_mag: &[u8], maxq: i64) -> ([i64; 3], usize) {
         let known = |v: u32| v < w;
         let he = &self.he;
         let vert = |c: u32| self.indices[c as usize];
@@ -135,13 +127,13 @@ impl Predictor {
             .map_or(MAGS - 1, |x| x.min(MAGS as u32 - 1) as usize);
         let avg = |s: [i64; 3], n: i64| s.map(|x| (2 * x + n).div_euclid(2 * n).clamp(0, maxq));
         if n > 0 {
-            (avg(sum, n), if n >= 2 { 0 } else { 1 }, mag)
+            (avg(sum, n), mag)
         } else if nn > 0 {
-            (avg(nsum, nn), 2, mag)
+            (avg(nsum, nn), mag)
         } else if w > 0 {
-            (q[w as usize - 1].map(|x| x as i64), 2, mag)
+            (q[w as usize - 1].map(|x| x as i64), mag)
         } else {
-            ([maxq / 2 + 1; 3].map(|x| x.min(maxq)), 2, mag)
+            ([maxq / 2 + 1; 3].map(|x| x.min(maxq)), mag)
         }
     }
 }
@@ -152,23 +144,42 @@ fn mag_class(r: [i64; 3]) -> u8 {
     (64 - m.leading_zeros()) as u8
 }
 
-/// The residual models: one adaptive magnitude model per context (predictor kind × expected
-/// magnitude × axis; the axis matters for flat or extruded models, whose residuals along one
-/// axis are all zero); signs are raw bits (they are equiprobable).
+/// The residual models: one adaptive magnitude model per context (expected magnitude × axis;
+/// the axis matters for flat or extruded models, whose residuals along one axis are all
+/// zero); signs are raw bits (they are equiprobable). Small meshes have too few residuals to
+/// train many contexts: the magnitude classes are merged below [`FULL_CONTEXTS`] vertices
+/// and dropped below [`SOME_CONTEXTS`].
 struct Models {
     mags: Vec<UInt>,
+    /// `None`: one class; `Some(s)`: class = expected bit length >> s.
+    shift: Option<u32>,
 }
 
+/// Referenced vertices from which every magnitude class has its own context.
+const FULL_CONTEXTS: usize = 16_384;
+/// Referenced vertices from which magnitude classes (merged by two) are used at all.
+const SOME_CONTEXTS: usize = 1_024;
+
 impl Models {
-    fn new() -> Self {
+    fn new(nref: usize) -> Self {
         Models {
-            mags: vec![UInt::new(); KINDS * MAGS * 3],
+            mags: vec![UInt::new(); MAGS * 3],
+            shift: if nref >= FULL_CONTEXTS {
+                Some(0)
+            } else if nref >= SOME_CONTEXTS {
+                Some(1)
+            } else {
+                None
+            },
         }
     }
 
     /// The model of `axis`: the expected magnitude is the neighbours' residual size `nb`
     /// (a bit length), averaged with the size of the axes of this vertex already coded.
-    fn model(&mut self, kind: usize, nb: usize, axis: usize, r: &[i64; 3]) -> &mut UInt {
+    fn model(&mut self, nb: usize, axis: usize, r: &[i64; 3]) -> &mut UInt {
+        let Some(shift) = self.shift else {
+            return &mut self.mags[axis];
+        };
         let e = if axis == 0 {
             nb
         } else {
@@ -180,35 +191,20 @@ impl Models {
             let own = 64 - m.leading_zeros() as usize;
             (nb + own).div_ceil(2)
         };
-        &mut self.mags[(kind * MAGS + e.min(MAGS - 1)) * 3 + axis]
+        &mut self.mags[(e >> shift).min(MAGS - 1) * 3 + axis]
     }
 
-    fn encode(
-        &mut self,
-        enc: &mut Encoder,
-        kind: usize,
-        nb: usize,
-        r: &mut [i64; 3],
-        axis: usize,
-        v: i64,
-    ) {
+    fn encode(&mut self, enc: &mut Encoder, nb: usize, r: &mut [i64; 3], axis: usize, v: i64) {
         r[axis] = v;
-        let m = self.model(kind, nb, axis, r);
+        let m = self.model(nb, axis, r);
         m.encode(enc, v.unsigned_abs() as u32);
         if v != 0 {
             enc.raw((v < 0) as u32, 1);
         }
     }
 
-    fn decode(
-        &mut self,
-        dec: &mut Decoder,
-        kind: usize,
-        nb: usize,
-        r: &mut [i64; 3],
-        axis: usize,
-    ) -> i64 {
-        let m = self.model(kind, nb, axis, r);
+    fn decode(&mut self, dec: &mut Decoder, nb: usize, r: &mut [i64; 3], axis: usize) -> i64 {
+        let m = self.model(nb, axis, r);
         let a = m.decode(dec) as i64;
         let v = if a != 0 && dec.raw(1) != 0 { -a } else { a };
         r[axis] = v;
@@ -228,10 +224,10 @@ pub(crate) fn encode(
 ) {
     let maxq = (1i64 << bits) - 1;
     let pred = Predictor::new(nref, offsets, indices);
-    let mut m = Models::new();
+    let mut m = Models::new(nref);
     let mut res_mag = vec![0u8; q.len()];
     for w in 0..q.len() {
-        let (p, kind, mag) = if w < nref {
+        let (p, mag) = if w < nref {
             pred.predict(w as u32, q, &res_mag, maxq)
         } else {
             let p = if w > 0 {
@@ -239,11 +235,11 @@ pub(crate) fn encode(
             } else {
                 [maxq / 2; 3]
             };
-            (p, 2, MAGS - 1)
+            (p, MAGS - 1)
         };
         let mut r = [0i64; 3];
         for i in 0..3 {
-            m.encode(enc, kind, mag, &mut r, i, q[w][i] as i64 - p[i]);
+            m.encode(enc, mag, &mut r, i, q[w][i] as i64 - p[i]);
         }
         res_mag[w] = mag_class(r);
     }
@@ -266,11 +262,11 @@ pub(crate) fn decode(
         ));
     }
     let pred = Predictor::new(nref, offsets, indices);
-    let mut m = Models::new();
+    let mut m = Models::new(nref);
     let mut res_mag = vec![0u8; nv];
     let mut q: Vec<[u32; 3]> = Vec::with_capacity(nv);
     for w in 0..nv {
-        let (p, kind, mag) = if w < nref {
+        let (p, mag) = if w < nref {
             pred.predict(w as u32, &q, &res_mag, maxq)
         } else {
             let p = if w > 0 {
@@ -278,12 +274,12 @@ pub(crate) fn decode(
             } else {
                 [maxq / 2; 3]
             };
-            (p, 2, MAGS - 1)
+            (p, MAGS - 1)
         };
         let mut r = [0i64; 3];
         let mut x = [0u32; 3];
         for i in 0..3 {
-            m.decode(dec, kind, mag, &mut r, i);
+            m.decode(dec, mag, &mut r, i);
             let v = p[i] + r[i];
             if !(0..=maxq).contains(&v) {
                 return Err(ChunkError::new(

@@ -260,3 +260,19 @@ fn random_corruptions_never_panic() {
         }
     }
 }
+
+#[test]
+fn context_thresholds_count_what_the_decoder_knows() {
+    // Referenced vertices + holes just below and at the threshold, with unreferenced
+    // vertices on top (the decoder's count excludes them).
+    let t = connectivity::VALENCE_CONTEXT_VERTICES as u32;
+    assert_eq!(t, 16_384);
+    for (nx, ny) in [(1, 8190), (128, 126)] {
+        let mut m = generate::grid(nx, ny, true);
+        assert!(m.num_vertices() as u32 + 1 >= t - 1);
+        for i in 0..40 {
+            m.positions.push(DVec3::new(i as f64, -3.0, 1.0));
+        }
+        check_roundtrip(&m, 12);
+    }
+}
