@@ -14,7 +14,8 @@
 //! hlen      u32                          bytes of the header including the index and its CRC
 //! fields    Header::write                fixed size (HEADER_FIELDS bytes)
 //! nchunks   u32
-//! per chunk kind u8, id u32, offset u64, len u32, crc u32, nmarks u16, marks u32 × nmarks
+//! per chunk kind u8, id u32, offset u64, len u32, crc u32, nmarks u16, marks (LEB128 varints
+//!           of the differences between successive marks, the first from 0)
 //! hcrc      u32                          CRC-32 of every header byte before it
 //! chunks    ...                          at their offsets, in index order
 //! ```
@@ -32,7 +33,7 @@ use crate::{Error, Result};
 /// The magic bytes.
 pub const MAGIC: [u8; 4] = *b"SWAV";
 /// The format version (bumped on every format change; the golden-bytes test pins it).
-pub const VERSION: u16 = 2;
+pub const VERSION: u16 = 3;
 /// Bytes of the fixed header fields.
 pub const HEADER_FIELDS: usize = 16 + 8 * 13 + 4 * 4;
 /// Bytes of a chunk index entry without marks.
@@ -176,6 +177,23 @@ pub fn crc32(data: &[u8]) -> u32 {
     !c
 }
 
+fn varint_len(mut v: u32) -> usize {
+    let mut n = 1;
+    while v >= 0x80 {
+        v >>= 7;
+        n += 1;
+    }
+    n
+}
+
+fn put_varint(out: &mut Vec<u8>, mut v: u32) {
+    while v >= 0x80 {
+        out.push((v as u8 & 0x7F) | 0x80);
+        v >>= 7;
+    }
+    out.push(v as u8);
+}
+
 fn put_f64(out: &mut Vec<u8>, x: f64) {
     out.extend_from_slice(&x.to_le_bytes());
 }
@@ -271,8 +289,20 @@ pub fn write(header: &Header, chunks: &[(ChunkKind, u32, Vec<u8>, Vec<u32>)]) ->
     head.extend_from_slice(&[0; 4]); // hlen, patched below
     header.write(&mut head);
     head.extend_from_slice(&(chunks.len() as u32).to_le_bytes());
-    let marks: usize = chunks.iter().map(|c| c.3.len()).sum();
-    let hlen = head.len() + chunks.len() * ENTRY + 4 * marks + 4;
+    let marks: usize = chunks
+        .iter()
+        .map(|c| {
+            let mut prev = 0u32;
+            c.3.iter()
+                .map(|&m| {
+                    let n = varint_len(m.wrapping_sub(prev));
+                    prev = m;
+                    n
+                })
+                .sum::<usize>()
+        })
+        .sum();
+    let hlen = head.len() + chunks.len() * ENTRY + marks + 4;
     let mut offset = hlen as u64;
     for (kind, id, data, marks) in chunks {
         if data.len() > u32::MAX as usize || marks.len() > u16::MAX as usize {
@@ -286,8 +316,15 @@ pub fn write(header: &Header, chunks: &[(ChunkKind, u32, Vec<u8>, Vec<u32>)]) ->
         head.extend_from_slice(&(data.len() as u32).to_le_bytes());
         head.extend_from_slice(&crc32(data).to_le_bytes());
         head.extend_from_slice(&(marks.len() as u16).to_le_bytes());
-        for m in marks {
-            head.extend_from_slice(&m.to_le_bytes());
+        let mut prev = 0u32;
+        for &m in marks {
+            if m < prev || m > data.len() as u32 {
+                return Err(Error::InvalidArgument(
+                    "chunk marks must increase and stay within the chunk".into(),
+                ));
+            }
+            put_varint(&mut head, m - prev);
+            prev = m;
         }
         offset += data.len() as u64;
     }
@@ -330,6 +367,23 @@ impl<'a> Reader<'a> {
     fn u32(&mut self) -> Result<u32> {
         let b = self.bytes(4)?;
         Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    }
+    fn varint(&mut self) -> Result<u32> {
+        let mut v = 0u64;
+        for i in 0..5 {
+            let b = self.bytes(1)?[0];
+            v |= ((b & 0x7F) as u64) << (7 * i);
+            if b & 0x80 == 0 {
+                return u32::try_from(v).map_err(|_| Error::Decode {
+                    offset: self.pos,
+                    message: "chunk index: a plane mark overflows".into(),
+                });
+            }
+        }
+        Err(Error::Decode {
+            offset: self.pos,
+            message: "chunk index: a plane mark is longer than 5 bytes".into(),
+        })
     }
     fn u64(&mut self) -> Result<u64> {
         let b = self.bytes(8)?;
@@ -423,16 +477,18 @@ pub fn read(bytes: &[u8]) -> Result<Container> {
         let len = r.u32()?;
         let crc = r.u32()?;
         let nm = r.u16()? as usize;
-        if nm > (r.data.len() - r.pos) / 4 {
+        if nm > r.data.len() - r.pos {
             return Err(Error::Decode {
                 offset: at,
                 message: format!("chunk index entry {i}: {nm} marks do not fit in the header"),
             });
         }
         let mut marks = Vec::with_capacity(nm);
+        let mut prev = 0u32;
         for _ in 0..nm {
-            let m = r.u32()?;
-            if m > len || marks.last().is_some_and(|&p| m < p) {
+            let m = prev.saturating_add(r.varint()?);
+            prev = m;
+            if m > len {
                 return Err(Error::Decode {
                     offset: at,
                     message: format!(

@@ -66,6 +66,9 @@ pub struct Forest {
     pub children: Vec<u32>,
     /// Level `j` of each node (its coefficient belongs to level `j → j + 1`).
     pub level: Vec<u8>,
+    /// Levels `L` of the hierarchy: nodes of level `j < L − 1` have offspring (every
+    /// edge and face is split), those of level `j < L − 2` grandchildren.
+    pub levels: usize,
 }
 
 impl Forest {
@@ -122,12 +125,14 @@ fn from_slots(num_nodes: usize, num_trees: usize, slots: &[[u32; 4]], level: Vec
         }
         offsets.push(children.len() as u32);
     }
+    let levels = level.iter().map(|&l| l as usize + 1).max().unwrap_or(0);
     Forest {
         num_nodes,
         num_trees,
         offsets,
         children,
         level,
+        levels,
     }
 }
 
@@ -292,6 +297,7 @@ fn quad_forest(h: &Hierarchy) -> Forest {
         offsets,
         children,
         level: levels_of(h),
+        levels: h.levels(),
     }
 }
 

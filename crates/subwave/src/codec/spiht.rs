@@ -190,10 +190,7 @@ impl Lists {
 /// Whether `L(n)` is not empty (some offspring has offspring).
 #[inline]
 fn has_grandchildren(forest: &Forest, n: usize) -> bool {
-    forest
-        .offspring(n)
-        .first()
-        .is_some_and(|&k| !forest.offspring(k as usize).is_empty())
+    forest.level[n] as usize + 2 < forest.levels
 }
 
 /// SPIHT encoder state over one set of roots (the whole forest, or one tree).
