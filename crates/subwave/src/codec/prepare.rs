@@ -12,8 +12,12 @@ use crate::mesh::Mesh;
 use crate::remesh::{remesh_with_progress, RemeshOptions, Remeshed};
 use crate::{Error, Result};
 
-/// Default subdivision levels of the remesh of an irregular input.
-pub const DEFAULT_LEVELS: u32 = 5;
+/// The finest level of a remesh (without explicit levels) has at least this many times the
+/// input's triangles: enough samples that the remesh is not the bottleneck of the
+/// rate–distortion curve (Maret §4.2.3), few enough that small meshes are not inflated.
+pub const FACE_RATIO: usize = 2;
+/// Most levels [`default_levels`] chooses.
+pub const MAX_DEFAULT_LEVELS: u32 = 6;
 /// Default base faces of the remesh of an irregular input.
 pub const DEFAULT_BASE_FACES: usize = 200;
 
@@ -21,7 +25,7 @@ pub const DEFAULT_BASE_FACES: usize = 200;
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PrepareOptions {
     /// Levels: required levels of a detected hierarchy (`None`: as many as the mesh has), and
-    /// the levels of a remesh (`None`: [`DEFAULT_LEVELS`]).
+    /// the levels of a remesh (`None`: [`default_levels`]).
     pub levels: Option<u32>,
     /// Base faces of a remesh (`None`: [`DEFAULT_BASE_FACES`]); ignored for a detected
     /// hierarchy.
@@ -32,6 +36,22 @@ pub struct PrepareOptions {
     pub sharp_angle: Option<f64>,
     /// Remesh even if the input has subdivision connectivity.
     pub force_remesh: bool,
+}
+
+/// The levels of a remesh of `input_triangles` triangles over about `base_faces` base
+/// triangles when none are given: the fewest with `base_faces · 4^L ≥ FACE_RATIO ·
+/// input_triangles`, between 1 and [`MAX_DEFAULT_LEVELS`] (bunny, 69k triangles over 200: 5;
+/// fandisk, 13k: 4; spot, 5.9k: 3).
+pub fn default_levels(input_triangles: usize, base_faces: usize) -> u32 {
+    let target = FACE_RATIO.saturating_mul(input_triangles);
+    let mut faces = base_faces.max(1);
+    let mut levels = 1;
+    faces = faces.saturating_mul(4);
+    while faces < target && levels < MAX_DEFAULT_LEVELS {
+        faces = faces.saturating_mul(4);
+        levels += 1;
+    }
+    levels
 }
 
 /// What [`prepare`] produced.
@@ -73,9 +93,13 @@ pub fn prepare(
             });
         }
     }
+    let base_faces = opts.base_faces.unwrap_or(DEFAULT_BASE_FACES);
+    let triangles: usize = mesh.faces().map(|f| f.len().saturating_sub(2)).sum();
     let ro = RemeshOptions {
-        levels: opts.levels.unwrap_or(DEFAULT_LEVELS),
-        base_faces: opts.base_faces.unwrap_or(DEFAULT_BASE_FACES),
+        levels: opts
+            .levels
+            .unwrap_or_else(|| default_levels(triangles, base_faces)),
+        base_faces,
         quads: opts.quads,
         sharp_angle: opts.sharp_angle,
         repair: true,
@@ -129,6 +153,16 @@ mod tests {
         assert_eq!(p.hierarchy.split, Split::Triangles);
         assert_eq!(r.mesh.num_vertices(), p.hierarchy.positions.len());
         assert!(!stages.is_empty());
+    }
+
+    #[test]
+    fn default_levels_follow_the_input_size() {
+        assert_eq!(default_levels(69_451, 200), 5);
+        assert_eq!(default_levels(12_946, 200), 4);
+        assert_eq!(default_levels(5_856, 200), 3);
+        assert_eq!(default_levels(10, 200), 1);
+        assert_eq!(default_levels(100_000_000, 200), MAX_DEFAULT_LEVELS);
+        assert_eq!(default_levels(1000, 0), 6.min(MAX_DEFAULT_LEVELS));
     }
 
     #[test]
