@@ -589,10 +589,15 @@ fn round_div(n: i128, d: i128) -> i128 {
 /// Runs `f(i, &mut out[i])` over `out` in parallel.
 #[inline]
 fn par_update<T: Send, F: Fn(usize, &mut T) + Sync + Send>(out: &mut [T], f: F) {
-    out.par_iter_mut()
-        .with_min_len(MIN_LEN)
+    // Chunks with a plain sequential loop inside: no per-element work-splitting overhead.
+    out.par_chunks_mut(MIN_LEN)
         .enumerate()
-        .for_each(|(i, x)| f(i, x));
+        .for_each(|(c, chunk)| {
+            let base = c * MIN_LEN;
+            for (k, x) in chunk.iter_mut().enumerate() {
+                f(base + k, x);
+            }
+        });
 }
 
 /// Splits a level's data into its `v`, `e` and `f` parts.
