@@ -517,27 +517,54 @@ struct EdgeWeights {
     den: i64,
 }
 
-/// `self = Σ w_i x_i`.
+/// `c0 x + c1 y`.
 #[inline]
-fn combo<T: Interpolate>(terms: &[(&T, f64)]) -> T {
+fn combo2<T: Interpolate>(x: &T, c0: f64, y: &T, c1: f64) -> T {
+    let mut r = T::zero();
+    r.add_scaled(x, c0);
+    r.add_scaled(y, c1);
+    r
+}
+
+/// `c0 x + c1 y + c2 z`.
+#[inline]
+fn combo3<T: Interpolate>(x: &T, c0: f64, y: &T, c1: f64, z: &T, c2: f64) -> T {
+    let mut r = T::zero();
+    r.add_scaled(x, c0);
+    r.add_scaled(y, c1);
+    r.add_scaled(z, c2);
+    r
+}
+
+/// `Σ data[idx]` (zero if `idx` is empty).
+#[inline]
+fn sum<T: Interpolate>(idx: &[u32], data: &[T]) -> T {
     let mut y = T::zero();
-    for (x, w) in terms {
-        y.add_scaled(x, *w);
+    for &i in idx {
+        y.add_scaled(&data[i as usize], 1.0);
     }
     y
 }
 
-/// Mean of `data[idx]` (zero if `idx` is empty).
+/// `1 / n` for the neighbour counts of the §4.1 averages (a table for the common ones: no
+/// division in the inner loops); 1 for `n = 0` (the sum is then zero).
 #[inline]
-fn mean<T: Interpolate>(idx: &[u32], data: &[T]) -> T {
-    let mut y = T::zero();
-    if !idx.is_empty() {
-        let w = 1.0 / idx.len() as f64;
-        for &i in idx {
-            y.add_scaled(&data[i as usize], w);
-        }
+fn recip(n: usize) -> f64 {
+    const R: [f64; 9] = [
+        1.0,
+        1.0,
+        1.0 / 2.0,
+        1.0 / 3.0,
+        1.0 / 4.0,
+        1.0 / 5.0,
+        1.0 / 6.0,
+        1.0 / 7.0,
+        1.0 / 8.0,
+    ];
+    match R.get(n) {
+        Some(r) => *r,
+        None => 1.0 / n as f64,
     }
-    y
 }
 
 /// Exact sum of `data[idx]` and the count (1 if empty, the sum being 0).
@@ -562,10 +589,15 @@ fn round_div(n: i128, d: i128) -> i128 {
 /// Runs `f(i, &mut out[i])` over `out` in parallel.
 #[inline]
 fn par_update<T: Send, F: Fn(usize, &mut T) + Sync + Send>(out: &mut [T], f: F) {
-    out.par_iter_mut()
-        .with_min_len(MIN_LEN)
+    // Chunks with a plain sequential loop inside: no per-element work-splitting overhead.
+    out.par_chunks_mut(MIN_LEN)
         .enumerate()
-        .for_each(|(i, x)| f(i, x));
+        .for_each(|(c, chunk)| {
+            let base = c * MIN_LEN;
+            for (k, x) in chunk.iter_mut().enumerate() {
+                f(base + k, x);
+            }
+        });
 }
 
 /// Splits a level's data into its `v`, `e` and `f` parts.
@@ -681,74 +713,114 @@ impl<'a> Ctx<'a> {
         (s, w.den as i128)
     }
 
-    fn lift<T: Interpolate>(&self, l: Lift, data: &mut [T]) {
+    /// `Σ data[idx]` and the weight `w / n` of its mean (`w` if `idx` is empty, the sum
+    /// being zero): the means of §4.1 scaled by a lift weight without a multiplication per
+    /// neighbour.
+    #[inline]
+    fn scaled_sum<T: Interpolate>(idx: &[u32], data: &[T], w: f64) -> (T, f64) {
+        (sum(idx, data), w * recip(idx.len()))
+    }
+
+    /// `k · ē_v` as a weighted sum and its overall weight.
+    #[inline]
+    fn scaled_e_bar_v<T: Interpolate>(&self, v: usize, e: &[T], k: f64) -> (T, f64) {
+        if self.symmetric {
+            (self.e_bar_v(v, e), k)
+        } else {
+            Self::scaled_sum(self.t.vertex_edges(v), e, k)
+        }
+    }
+
+    /// Vertex update `x ← c0 x + cf f̄_v + ce ē_v`.
+    #[inline]
+    fn vertex_pass<T: Interpolate>(
+        &self,
+        v: &mut [T],
+        e: &[T],
+        f: &[T],
+        c0: f64,
+        cf: f64,
+        ce: f64,
+    ) {
         let t = self.t;
-        let (v, e, f) = split3(t, data);
+        par_update(v, |i, x| {
+            let (fs, wf) = Self::scaled_sum(t.vertex_faces(i), f, cf);
+            let (es, we) = self.scaled_e_bar_v(i, e, ce);
+            *x = combo3(x, c0, &fs, wf, &es, we);
+        });
+    }
+
+    /// Face update `x ← c0 x + cv v̄_f + ce ē_f`.
+    #[inline]
+    fn face_pass<T: Interpolate>(&self, f: &mut [T], v: &[T], e: &[T], c0: f64, cv: f64, ce: f64) {
+        let t = self.t;
+        par_update(f, |i, x| {
+            let (vs, wv) = Self::scaled_sum(t.face_vertices(i), v, cv);
+            let (es, we) = Self::scaled_sum(t.face_edges(i), e, ce);
+            *x = combo3(x, c0, &vs, wv, &es, we);
+        });
+    }
+
+    /// Edge update `x ← c0 x + c1 s̄_e` with `s̄_e` the mean over the edge's faces (`src` =
+    /// f) or its two vertices (`src` = v).
+    #[inline]
+    fn edge_pass<T: Interpolate>(
+        &self,
+        e: &mut [T],
+        src: &[T],
+        from_faces: bool,
+        c0: f64,
+        c1: f64,
+    ) {
+        let t = self.t;
+        if from_faces {
+            par_update(e, |i, x| {
+                let (s, w) = Self::scaled_sum(t.edge_faces(i), src, c1);
+                *x = combo2(x, c0, &s, w);
+            });
+        } else {
+            let h = 0.5 * c1;
+            par_update(e, |i, x| {
+                let [p, q] = t.edge_vertices[i];
+                let mut s = src[p as usize];
+                s.add_scaled(&src[q as usize], 1.0);
+                *x = combo2(x, c0, &s, h);
+            });
+        }
+    }
+
+    fn lift<T: Interpolate>(&self, l: Lift, data: &mut [T]) {
+        let (v, e, f) = split3(self.t, data);
         let (a, b) = (l.a, l.b);
         let (kk, kb, b2) = (4.0 * a * a, 4.0 * a * b, b * b);
         match l.kind {
             S => {
                 // v ← b² v + 4a² f̄_v + 4ab ē_v (eq. 4.5), reading the old e.
-                let (e_ro, f_ro): (&[T], &[T]) = (e, f);
-                par_update(v, |i, x| {
-                    let fb = mean(t.vertex_faces(i), f_ro);
-                    let eb = self.e_bar_v(i, e_ro);
-                    *x = combo(&[(x, b2), (&fb, kk), (&eb, kb)]);
-                });
+                self.vertex_pass(v, e, f, b2, kk, kb);
                 // e ← b e + 2a f̄_e.
-                par_update(e, |i, x| {
-                    let fb = mean(t.edge_faces(i), f_ro);
-                    *x = combo(&[(x, b), (&fb, 2.0 * a)]);
-                });
+                self.edge_pass(e, f, true, b, 2.0 * a);
             }
             W => {
                 // f ← b² f + 4a² v̄_f + 4ab ē_f (eq. 4.6), reading the old e.
-                let (v_ro, e_ro): (&[T], &[T]) = (v, e);
-                par_update(f, |i, x| {
-                    let vb = mean(t.face_vertices(i), v_ro);
-                    let eb = mean(t.face_edges(i), e_ro);
-                    *x = combo(&[(x, b2), (&vb, kk), (&eb, kb)]);
-                });
+                self.face_pass(f, v, e, b2, kk, kb);
                 // e ← b e + 2a v̄_e.
-                par_update(e, |i, x| {
-                    let vb = mean(&t.edge_vertices[i], v_ro);
-                    *x = combo(&[(x, b), (&vb, 2.0 * a)]);
-                });
+                self.edge_pass(e, v, false, b, 2.0 * a);
             }
         }
     }
 
     fn unlift<T: Interpolate>(&self, l: Lift, data: &mut [T]) {
-        let t = self.t;
-        let (v, e, f) = split3(t, data);
+        let (v, e, f) = split3(self.t, data);
         let (a, b) = (l.a, l.b);
         let (kk, kb, b2) = (4.0 * a * a, 4.0 * a * b, b * b);
         match l.kind {
             S => {
-                let f_ro: &[T] = f;
-                par_update(e, |i, x| {
-                    let fb = mean(t.edge_faces(i), f_ro);
-                    *x = combo(&[(x, 1.0 / b), (&fb, -2.0 * a / b)]);
-                });
-                let e_ro: &[T] = e;
-                par_update(v, |i, x| {
-                    let fb = mean(t.vertex_faces(i), f_ro);
-                    let eb = self.e_bar_v(i, e_ro);
-                    *x = combo(&[(x, 1.0 / b2), (&fb, -kk / b2), (&eb, -kb / b2)]);
-                });
+                self.edge_pass(e, f, true, 1.0 / b, -2.0 * a / b);
+                self.vertex_pass(v, e, f, 1.0 / b2, -kk / b2, -kb / b2);
             }
             W => {
-                let v_ro: &[T] = v;
-                par_update(e, |i, x| {
-                    let vb = mean(&t.edge_vertices[i], v_ro);
-                    *x = combo(&[(x, 1.0 / b), (&vb, -2.0 * a / b)]);
-                });
-                let e_ro: &[T] = e;
-                par_update(f, |i, x| {
-                    let vb = mean(t.face_vertices(i), v_ro);
-                    let eb = mean(t.face_edges(i), e_ro);
-                    *x = combo(&[(x, 1.0 / b2), (&vb, -kk / b2), (&eb, -kb / b2)]);
-                });
+                self.edge_pass(e, v, false, 1.0 / b, -2.0 * a / b);
+                self.face_pass(f, v, e, 1.0 / b2, -kk / b2, -kb / b2);
             }
         }
     }
