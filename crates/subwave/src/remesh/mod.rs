@@ -373,7 +373,28 @@ pub fn remesh_with_progress(
         progress("relax", 0.0);
         let topo = &h.topologies[opts.levels as usize];
         resample::relax(&mut fine, topo, &fixed, &proj, opts.relax_iterations, 0.5);
-        let left = resample::untangle(&mut fine, topo, &fixed, &proj, 6);
+        // Untangling may also slide base vertices that are not on a boundary or feature
+        // chain (they are not corners of any curve) tangentially on the input.
+        let mut on_chain = vec![false; s.positions.len()];
+        for &(a, b) in &s.chain_edges {
+            on_chain[a as usize] = true;
+            on_chain[b as usize] = true;
+        }
+        let pinned: Vec<bool> = params
+            .iter()
+            .zip(&fixed)
+            .map(|(p, &f)| {
+                f && match p.bary.iter().position(|&x| x == 1.0) {
+                    Some(k) => on_chain[s.triangles[p.face as usize][k] as usize],
+                    None => true,
+                }
+            })
+            .collect();
+        resample::untangle(&mut fine, topo, &pinned, &proj, 6);
+        // Final guarded projection of every free vertex onto its closest input point (a
+        // relaxation step of length zero), then untangling again.
+        resample::relax(&mut fine, topo, &pinned, &proj, 1, 0.0);
+        let left = resample::untangle(&mut fine, topo, &pinned, &proj, 12);
         if tracing::enabled!(tracing::Level::DEBUG) {
             let flips = resample::flipped_faces(topo, &fine, &proj);
             let nbv = h.base.positions.len() as u32;
