@@ -30,6 +30,18 @@ pub enum WaveletArg {
     Cubic,
 }
 
+impl From<WaveletArg> for Wavelet {
+    fn from(w: WaveletArg) -> Wavelet {
+        match w {
+            WaveletArg::Loop => Wavelet::Loop,
+            WaveletArg::Butterfly => Wavelet::Butterfly,
+            WaveletArg::Midpoint => Wavelet::Midpoint,
+            WaveletArg::Linear => Wavelet::Linear,
+            WaveletArg::Cubic => Wavelet::Cubic,
+        }
+    }
+}
+
 /// `--frames`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum FramesArg {
@@ -37,6 +49,15 @@ pub enum FramesArg {
     Local,
     /// Global x, y, z.
     Global,
+}
+
+impl From<FramesArg> for DetailFrame {
+    fn from(f: FramesArg) -> DetailFrame {
+        match f {
+            FramesArg::Local => DetailFrame::Local,
+            FramesArg::Global => DetailFrame::Global,
+        }
+    }
 }
 
 /// `--layout`.
@@ -71,8 +92,8 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
         quads: matches!(args.wavelet, Some(WaveletArg::Linear | WaveletArg::Cubic)),
         ..Default::default()
     };
-    let prepared =
-        prepare(&mesh, &popts, &mut |_, _| {}).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let prepared = crate::progress::with_bar("remesh", false, |cb| prepare(&mesh, &popts, cb))
+        .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let remeshed = prepared.remeshed.is_some();
     if let Some(r) = &prepared.remeshed {
         for w in &r.warnings {
@@ -84,13 +105,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     let h = prepared.hierarchy;
     let mut opts = EncodeOptions::for_hierarchy(&h);
     if let Some(w) = args.wavelet {
-        opts.wavelet = match w {
-            WaveletArg::Loop => Wavelet::Loop,
-            WaveletArg::Butterfly => Wavelet::Butterfly,
-            WaveletArg::Midpoint => Wavelet::Midpoint,
-            WaveletArg::Linear => Wavelet::Linear,
-            WaveletArg::Cubic => Wavelet::Cubic,
-        };
+        opts.wavelet = w.into();
     }
     if opts.wavelet.is_quad() != (h.split == Split::Polygons) {
         bail!(
@@ -100,10 +115,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
         );
     }
     if let Some(f) = args.frames {
-        opts.frames = match f {
-            FramesArg::Local => DetailFrame::Local,
-            FramesArg::Global => DetailFrame::Global,
-        };
+        opts.frames = f.into();
     }
     opts.components = match args.components {
         ComponentsArg::Aligned => ComponentMode::Aligned,

@@ -11,12 +11,11 @@ use anyhow::{bail, Context, Result};
 use serde_json::json;
 use subwave::codec::eval::{self, bpv_at_psnr, RdPoint};
 use subwave::codec::prepare::{prepare, PrepareOptions};
-use subwave::codec::progressive::{decode, encode, inspect, DecodeOptions, EncodeOptions, Wavelet};
+use subwave::codec::progressive::{decode, encode, inspect, DecodeOptions, EncodeOptions};
+use subwave::hierarchy::Hierarchy;
 use subwave::io::read_mesh;
-use subwave::subdivision::refine::Split;
-use subwave::wavelet::triangle::DetailFrame;
 
-use crate::encode::{FramesArg, WaveletArg};
+use crate::encode::WaveletArg;
 use crate::svg::{self, Series};
 use crate::{print, progress, EvalArgs};
 
@@ -88,31 +87,18 @@ fn parse_reference(text: &str, path: &Path, mesh_file: &str) -> Result<Reference
     Ok(Reference { name, points })
 }
 
-fn options(args: &EvalArgs, split: Split) -> Result<EncodeOptions> {
-    let mut o = EncodeOptions::default();
-    if split == Split::Polygons {
-        o.wavelet = Wavelet::Cubic;
-        o.frames = DetailFrame::Global;
-    }
+fn options(args: &EvalArgs, h: &Hierarchy) -> EncodeOptions {
+    let mut o = EncodeOptions::for_hierarchy(h);
     if let Some(w) = args.wavelet {
-        o.wavelet = match w {
-            WaveletArg::Loop => Wavelet::Loop,
-            WaveletArg::Butterfly => Wavelet::Butterfly,
-            WaveletArg::Midpoint => Wavelet::Midpoint,
-            WaveletArg::Linear => Wavelet::Linear,
-            WaveletArg::Cubic => Wavelet::Cubic,
-        };
+        o.wavelet = w.into();
     }
     if let Some(f) = args.frames {
-        o.frames = match f {
-            FramesArg::Local => DetailFrame::Local,
-            FramesArg::Global => DetailFrame::Global,
-        };
+        o.frames = f.into();
     }
     if let Some(b) = args.bits {
         o.bits = b;
     }
-    Ok(o)
+    o
 }
 
 /// Runs `subwave eval`.
@@ -150,7 +136,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     })
     .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let h = &prep.hierarchy;
-    let mut opts = options(args, h.split)?;
+    let mut opts = options(args, h);
     opts.input_vertices = Some(mesh.num_vertices() as u32);
     let bytes = encode(h, &opts).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let encode_ms = t0.elapsed().as_secs_f64() * 1e3;

@@ -4,10 +4,8 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 use anyhow::{Context, Result};
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use subwave::distance::distance;
 use subwave::remesh::{remesh_with_progress, MethodChoice, RemeshOptions, Remeshed};
 
@@ -111,52 +109,13 @@ fn options(args: &RemeshArgs) -> RemeshOptions {
     }
 }
 
-/// A progress bar on stderr that appears only when the work takes over a second.
+/// [`remesh_with_progress`] under a progress bar on stderr (shown after a second).
 fn run_with_bar(
     mesh: &subwave::Mesh,
     opts: &RemeshOptions,
     quiet: bool,
 ) -> subwave::Result<Remeshed> {
-    let bar = ProgressBar::with_draw_target(
-        Some(1000),
-        if quiet {
-            ProgressDrawTarget::hidden()
-        } else {
-            ProgressDrawTarget::stderr()
-        },
-    );
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{spinner} remesh {msg:12} [{bar:30}] {percent:>3}% {elapsed}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar())
-        .progress_chars("=> "),
-    );
-    // Draw only after a second (indicatif draws on the first update otherwise).
-    let start = std::time::Instant::now();
-    bar.set_draw_target(ProgressDrawTarget::hidden());
-    let mut shown = quiet;
-    let stages = [
-        "prepare",
-        "simplify",
-        "parameterize",
-        "resample",
-        "relax",
-        "quality",
-    ];
-    let weights = [0.05, 0.45, 0.1, 0.2, 0.15, 0.05];
-    let result = remesh_with_progress(mesh, opts, &mut |stage, f| {
-        if !shown && start.elapsed() > Duration::from_secs(1) {
-            bar.set_draw_target(ProgressDrawTarget::stderr());
-            shown = true;
-        }
-        let i = stages.iter().position(|s| *s == stage).unwrap_or(0);
-        let done: f64 = weights[..i].iter().sum::<f64>() + weights[i] * f.clamp(0.0, 1.0);
-        bar.set_message(stage.to_string());
-        bar.set_position((done * 1000.0) as u64);
-    });
-    bar.finish_and_clear();
-    result
+    crate::progress::with_bar("remesh", quiet, |cb| remesh_with_progress(mesh, opts, cb))
 }
 
 fn base_path(out: &Path) -> PathBuf {
