@@ -6,7 +6,7 @@ use std::time::Instant;
 use anyhow::{bail, Result};
 use clap::ValueEnum;
 use subwave::codec::prepare::{prepare, PrepareOptions};
-use subwave::codec::progressive::{encode, inspect, EncodeOptions, Layout, Wavelet};
+use subwave::codec::progressive::{encode, inspect, Layout, Wavelet};
 use subwave::codec::quantize::ComponentMode;
 use subwave::io::read_mesh;
 use subwave::subdivision::refine::Split;
@@ -78,6 +78,27 @@ pub enum ComponentsArg {
     Independent,
 }
 
+/// How an irregular input is remeshed (`--remesh`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum RemeshArg {
+    /// `normal` unless `--sharp-angle` marks feature edges.
+    Auto,
+    /// MAPS, then re-sampled into a normal mesh (unlifted butterfly).
+    Normal,
+    /// MAPS only (lifted butterfly).
+    Maps,
+}
+
+impl From<RemeshArg> for Option<bool> {
+    fn from(r: RemeshArg) -> Self {
+        match r {
+            RemeshArg::Auto => None,
+            RemeshArg::Normal => Some(true),
+            RemeshArg::Maps => Some(false),
+        }
+    }
+}
+
 /// Runs `subwave encode`.
 pub fn run(args: &EncodeArgs) -> Result<()> {
     let name = print::path(&args.mesh);
@@ -90,6 +111,8 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
         levels: args.levels,
         base_faces: args.base_faces.map(|n| n as usize),
         quads: matches!(args.wavelet, Some(WaveletArg::Linear | WaveletArg::Cubic)),
+        sharp_angle: args.sharp_angle,
+        normal: args.remesh.into(),
         ..Default::default()
     };
     let prepared = crate::progress::with_bar("remesh", false, |cb| prepare(&mesh, &popts, cb))
@@ -102,8 +125,11 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     } else if args.base_faces.is_some() {
         tracing::warn!("--base-faces only applies to remeshed (irregular) input; the detected base mesh is used");
     }
+    if let Some(n) = &prepared.normal {
+        println!("{}", print::normal_stats(n));
+    }
+    let mut opts = prepared.encode_options();
     let h = prepared.hierarchy;
-    let mut opts = EncodeOptions::for_hierarchy(&h);
     if let Some(w) = args.wavelet {
         opts.wavelet = w.into();
     }
@@ -129,7 +155,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     if args.lossless && opts.wavelet == Wavelet::Loop {
         bail!("--lossless needs an integer wavelet: butterfly or midpoint (triangles), linear or cubic (quads)");
     }
-    opts.lifted = args.lossless || !args.unlifted;
+    opts.lifted = args.lossless || (opts.lifted && !args.unlifted);
     opts.contexts = !args.no_contexts;
     if let Some(b) = args.bits {
         opts.bits = b;

@@ -10,9 +10,8 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use serde_json::json;
 use subwave::codec::eval::{self, bpv_at_psnr, RdPoint};
-use subwave::codec::prepare::{prepare, PrepareOptions};
+use subwave::codec::prepare::{prepare, PrepareOptions, Prepared};
 use subwave::codec::progressive::{decode, encode, inspect, DecodeOptions, EncodeOptions};
-use subwave::hierarchy::Hierarchy;
 use subwave::io::read_mesh;
 
 use crate::encode::WaveletArg;
@@ -87,8 +86,8 @@ fn parse_reference(text: &str, path: &Path, mesh_file: &str) -> Result<Reference
     Ok(Reference { name, points })
 }
 
-fn options(args: &EvalArgs, h: &Hierarchy) -> EncodeOptions {
-    let mut o = EncodeOptions::for_hierarchy(h);
+fn options(args: &EvalArgs, prep: &Prepared) -> EncodeOptions {
+    let mut o = prep.encode_options();
     if let Some(w) = args.wavelet {
         o.wavelet = w.into();
     }
@@ -98,6 +97,7 @@ fn options(args: &EvalArgs, h: &Hierarchy) -> EncodeOptions {
     if let Some(b) = args.bits {
         o.bits = b;
     }
+    o.lifted &= !args.unlifted;
     o
 }
 
@@ -130,13 +130,17 @@ pub fn run(args: &EvalArgs) -> Result<()> {
                 quads,
                 sharp_angle: args.sharp_angle,
                 force_remesh: false,
+                normal: args.remesh.into(),
             },
             cb,
         )
     })
     .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    if let (Some(n), false) = (&prep.normal, args.json) {
+        println!("{}", print::normal_stats(n));
+    }
     let h = &prep.hierarchy;
-    let mut opts = options(args, h);
+    let mut opts = options(args, &prep);
     opts.input_vertices = Some(mesh.num_vertices() as u32);
     let bytes = encode(h, &opts).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let encode_ms = t0.elapsed().as_secs_f64() * 1e3;

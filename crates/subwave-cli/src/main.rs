@@ -115,6 +115,12 @@ pub struct EvalArgs {
     /// Detail coordinates (triangle wavelets; default local).
     #[arg(long, value_enum)]
     pub frames: Option<encode::FramesArg>,
+    /// Unlifted midpoint/butterfly (no update step).
+    #[arg(long)]
+    pub unlifted: bool,
+    /// How an irregular input is remeshed (see `subwave encode --help`).
+    #[arg(long, value_enum, default_value_t = encode::RemeshArg::Auto)]
+    pub remesh: encode::RemeshArg,
     /// Truncation points (byte budgets spaced geometrically from the base mesh to the whole
     /// stream).
     #[arg(long, value_name = "K", default_value_t = 10,
@@ -160,6 +166,14 @@ pub struct EncodeArgs {
     /// Unlifted midpoint/butterfly (no update step; not with --lossless).
     #[arg(long)]
     pub unlifted: bool,
+    /// How an irregular input is remeshed: `normal` re-samples the MAPS remesh into a normal
+    /// mesh (Guskov et al. 2000) coded with the unlifted butterfly wavelet, `maps` keeps it
+    /// (lifted butterfly); `auto` is `normal` unless --sharp-angle marks feature edges.
+    #[arg(long, value_enum, default_value_t = encode::RemeshArg::Auto)]
+    pub remesh: encode::RemeshArg,
+    /// Feature edges of the remesh: dihedral angle in degrees (kept sharp as creases).
+    #[arg(long, value_name = "DEG")]
+    pub sharp_angle: Option<f64>,
     /// Bit planes of the coefficient quantization (eq. 4.8; default 16), or with --lossless
     /// the bits of the position grid (default 12).
     #[arg(long, value_name = "B", value_parser = clap::value_parser!(u32).range(1..=30))]

@@ -227,6 +227,20 @@ pub fn report_line(r: &MeshReport) -> String {
     )
 }
 
+/// One line on a normal re-sampling: how many odd vertices were pierced or projected.
+pub fn normal_stats(n: &subwave::remesh::normal::NormalStats) -> String {
+    let odd: usize = n.odd.iter().sum();
+    let pierced: usize = n.normal.iter().sum();
+    let projected: usize = n.projected.iter().sum();
+    let pc = |k: usize| 100.0 * k as f64 / odd.max(1) as f64;
+    format!(
+        "normal mesh: {pierced} of {odd} odd vertices pierced ({:.1}%), {projected} projected ({:.1}%), {} kept",
+        pc(pierced),
+        pc(projected),
+        odd - pierced - projected
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

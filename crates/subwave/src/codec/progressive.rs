@@ -506,19 +506,17 @@ pub fn encode_with_info(h: &Hierarchy, opts: &EncodeOptions) -> Result<(Vec<u8>,
         // re-index the hierarchy to the decoded base order and transform again there.
         let mut flat = h.positions.clone();
         Transform::new(h, opts.wavelet, lifted, frame)?.forward(&mut flat)?;
+        // The crease and corner tags travel in the base chunk (the decoder's hierarchy has
+        // them too, so both sides predict with the same rules).
         let mut coarse = h.base.clone();
         coarse.positions = flat[..v0].to_vec();
-        coarse.edge_tags.clear();
-        coarse.vertex_tags.clear();
         let enc = basemesh::encode_with_info(
             &coarse,
             &BaseMeshOptions {
                 position_bits: opts.base_bits.clamp(8, 30),
             },
         )?;
-        let mut new_base = enc.decoded.clone();
-        new_base.edge_tags.clear();
-        new_base.vertex_tags.clear();
+        let new_base = enc.decoded.clone();
         let nh = reindex(h, &new_base, &enc.vertex_map)?;
         let mut flat = nh.positions.clone();
         Transform::new(&nh, opts.wavelet, lifted, frame)?.forward(&mut flat)?;
@@ -810,6 +808,13 @@ fn derr(offset: usize, message: impl Into<String>) -> Error {
 }
 
 fn parse(bytes: &[u8]) -> Result<Parsed> {
+    parse_within(bytes, bytes.len())
+}
+
+/// [`parse`] of a prefix `bytes` of a stream of which the caller holds `available` bytes:
+/// declared sizes are bounded in proportion to `available` (a prefix of an in-memory stream
+/// may decode to a mesh far larger than the prefix itself).
+fn parse_within(bytes: &[u8], available: usize) -> Result<Parsed> {
     let c = container::read(bytes)?;
     let h = &c.header;
     let wavelet = Wavelet::from_id(h.wavelet)
@@ -844,7 +849,7 @@ fn parse(bytes: &[u8]) -> Result<Parsed> {
         return Err(derr(18, "top bit planes out of range"));
     }
     // Sizes against the stream size, before allocating anything.
-    let budget = 1024u64 * bytes.len() as u64 + (1 << 16);
+    let budget = 1024u64 * available.max(bytes.len()) as u64 + (1 << 16);
     let fine_faces = (h.base_corners as u64).saturating_mul(4u64.saturating_pow(h.levels as u32));
     if h.base_vertices as u64 > budget || h.base_corners as u64 > budget || fine_faces > budget {
         return Err(derr(
@@ -854,7 +859,7 @@ fn parse(bytes: &[u8]) -> Result<Parsed> {
                 h.base_vertices,
                 h.base_corners,
                 h.levels,
-                bytes.len()
+                available.max(bytes.len())
             ),
         ));
     }
@@ -981,7 +986,7 @@ fn setup(p: &Parsed, bytes: &[u8]) -> Result<Setup> {
         ));
     }
     let (base, base_q) = if p.flags & F_BASEMESH != 0 {
-        let mut m = basemesh::decode(data)
+        let m = basemesh::decode(data)
             .map_err(|e| derr(off, format!("{}: {e}", p.c.chunks[0].name(0))))?;
         if m.num_vertices() != h.base_vertices as usize
             || m.num_faces() != h.base_faces as usize
@@ -992,8 +997,6 @@ fn setup(p: &Parsed, bytes: &[u8]) -> Result<Setup> {
                 "the base mesh chunk does not match the header's base counts",
             ));
         }
-        m.edge_tags.clear();
-        m.vertex_tags.clear();
         (m, Vec::new())
     } else {
         let (mut m, q) = decode_base(
@@ -1045,9 +1048,10 @@ fn setup(p: &Parsed, bytes: &[u8]) -> Result<Setup> {
 /// index and base chunk, a chunk failing its checksum (named), declared sizes out of
 /// proportion to the stream, a corrupt base mesh.
 pub fn decode(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
-    let limit = opts.max_bytes.map_or(bytes.len(), |m| m.min(bytes.len()));
+    let available = bytes.len();
+    let limit = opts.max_bytes.map_or(available, |m| m.min(available));
     let bytes = &bytes[..limit];
-    let p = parse(bytes)?;
+    let p = parse_within(bytes, available)?;
     let s = setup(&p, bytes)?;
     // The coefficients and the synthesis tables are independent: build them in parallel.
     let (coded, t) = rayon::join(

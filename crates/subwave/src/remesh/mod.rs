@@ -24,6 +24,7 @@
 //! Maret eq. 5.7), so [`crate::hierarchy::Hierarchy::detect`] accepts it and the wavelet
 //! transforms take it directly; [`Remeshed::hierarchy`] is that hierarchy.
 
+pub mod normal;
 pub mod param;
 pub mod quality;
 pub mod repair;
@@ -253,7 +254,25 @@ pub fn remesh_with_progress(
         let h1 = Hierarchy::new(&base_tri, 1, Split::Polygons, None)?;
         (Split::Polygons, h1.finest_mesh())
     } else {
-        (Split::Triangles, base_tri.clone())
+        // Feature chains become infinitely sharp creases of the base mesh, so that the
+        // subdivision rules and wavelets of the hierarchy keep them sharp (boundary chains
+        // are boundaries already).
+        let mut b = base_tri.clone();
+        let topo0 = Topology::build(&b);
+        let mut chains: Vec<(u32, u32)> = s.chain_edges.iter().copied().collect();
+        chains.sort_unstable();
+        for (x, y) in chains {
+            if topo0
+                .find_edge(x, y)
+                .is_some_and(|e| !topo0.is_boundary_edge(e as usize))
+            {
+                b.edge_tags.push(crate::mesh::EdgeTag {
+                    vertices: [x, y],
+                    sharpness: crate::mesh::SHARPNESS_INFINITE,
+                });
+            }
+        }
+        (Split::Triangles, b)
     };
     let mut h = Hierarchy::new(&base, opts.levels, split, None)?;
     let params = resample::level_params(&h, opts.levels as usize, opts.quads);

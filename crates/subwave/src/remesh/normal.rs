@@ -1,0 +1,418 @@
+//! Normal remeshing: re-sampling a semi-regular remesh so that its unlifted butterfly details
+//! are (mostly) scalars along the predicted normal.
+//!
+//! Guskov, Vidimče, Sweldens & Schröder, "Normal Meshes" (SIGGRAPH 2000), §3: every vertex
+//! added by a refinement step is found by a *piercing* — the line through the vertex's
+//! predicted position (the interpolating subdivision of the coarser level), along the
+//! predicted surface's normal, intersected with the input surface. The detail that the
+//! wavelet transform then finds is the signed distance along that line: one scalar instead of
+//! a 3-vector. Khodakovsky & Guskov ("Compression of Normal Meshes", 2002) code such meshes
+//! with the unlifted butterfly wavelet in local frames and find them markedly better than
+//! PGC's MAPS remeshes (Maret 2003 §4.4.3 describes the same local frames): the two tangential
+//! components of a local-frame detail (Maret Fig. 4.8) are exactly zero and cost SPIHT nothing.
+//!
+//! # The method here
+//! Starting from the MAPS remesh of [`super::remesh`] (its base vertices and its boundary and
+//! feature curves), level by level, coarse to fine, each odd vertex (one per parent edge,
+//! ordering contract of [`crate::subdivision::refine`]):
+//! 1. is predicted with the modified butterfly stencils of the hierarchy (the
+//!    [`TriangleWavelet`] that the codec uses, unlifted) from the already final coarser level;
+//! 2. gets the normal of the codec's local frame ([`odd_vertex_frames`]) on that predicted
+//!    surface, so the piercing direction is the very axis of the coder's first component;
+//! 3. is moved to the nearest intersection of that line with the input, at most
+//!    [`NormalOptions::reach`] parent-edge lengths away in either direction, provided the hit
+//!    input triangle faces the same way as the predicted normal (which refuses the far sheet
+//!    of a thin part); otherwise (Guskov et al.'s *non-normal* vertices, §3) to the closest
+//!    input point of the prediction under the same conditions, whose detail is along the
+//!    input's normal there; failing both, it keeps its MAPS position.
+//!
+//! Vertices on boundary and feature (crease) edges keep their MAPS positions: they lie on the
+//! input's curves, which a normal line does not follow. Unlike Guskov et al. the piercing is
+//! not restricted by the parameterization, so on strongly curved, coarsely sampled regions a
+//! level can fold; [`normal_resample`] leaves the check to [`super::quality`].
+
+use glam::DVec3;
+use parry3d_f64::query::{PointQueryWithLocation, Ray, RayCast};
+use parry3d_f64::shape::TriMesh;
+use rayon::prelude::*;
+
+use crate::hierarchy::Hierarchy;
+use crate::subdivision::refine::Split;
+use crate::subdivision::{Scheme, SubdivideOptions};
+use crate::topology::Topology;
+use crate::wavelet::frames::odd_vertex_frames;
+use crate::wavelet::triangle::TriangleWavelet;
+use crate::{Error, Result};
+
+/// Options of [`normal_resample`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NormalOptions {
+    /// How far from its prediction an odd vertex may move (along the normal line, or to the
+    /// closest input point), in lengths of its parent edge (default 1).
+    pub reach: f64,
+    /// The smallest cosine between the piercing line and the hit input triangle's normal
+    /// (default 0.17, about 80°): grazing hits are refused.
+    pub min_cos: f64,
+    /// The first refinement step that is re-sampled: the odd vertices of levels
+    /// `1..=from_level` keep their MAPS positions (default 2). On the coarsest levels the
+    /// prediction is far from the input and a piercing can land on another part of it.
+    pub from_level: usize,
+    /// Keep the MAPS positions of odd vertices whose parent edge touches a boundary or
+    /// feature curve (default true).
+    pub keep_near_curves: bool,
+}
+
+impl Default for NormalOptions {
+    fn default() -> Self {
+        NormalOptions {
+            reach: 1.0,
+            min_cos: 0.17,
+            from_level: 2,
+            keep_near_curves: true,
+        }
+    }
+}
+
+/// What [`normal_resample`] did, per level.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct NormalStats {
+    /// For each refinement step `j → j + 1`: the odd vertices of level `j + 1`.
+    pub odd: Vec<usize>,
+    /// For each step: the odd vertices moved onto their normal line (normal vertices).
+    pub normal: Vec<usize>,
+    /// For each step: the other odd vertices moved to the closest input point of their
+    /// prediction (their details are nearly normal).
+    pub projected: Vec<usize>,
+}
+
+impl NormalStats {
+    /// The fraction of all odd vertices that are normal (1 if there are none).
+    pub fn normal_fraction(&self) -> f64 {
+        let odd: usize = self.odd.iter().sum();
+        if odd == 0 {
+            return 1.0;
+        }
+        self.normal.iter().sum::<usize>() as f64 / odd as f64
+    }
+}
+
+/// Re-samples the triangle hierarchy `h` (a remesh of the surface `input_pos` /
+/// `input_tris`) into a normal mesh with respect to the unlifted modified butterfly
+/// prediction (see the module documentation). Base vertices, boundary and feature vertices
+/// keep their positions; the connectivity is unchanged.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] if `h` is not a triangle hierarchy, if an input triangle
+/// names a vertex that does not exist, or if the input has no triangles.
+pub fn normal_resample(
+    h: &mut Hierarchy,
+    input_pos: &[DVec3],
+    input_tris: &[[u32; 3]],
+    opts: &NormalOptions,
+) -> Result<NormalStats> {
+    if h.split != Split::Triangles {
+        return Err(Error::InvalidArgument(
+            "normal remeshing needs a triangle hierarchy (not --quads)".to_string(),
+        ));
+    }
+    if input_tris.is_empty() {
+        return Err(Error::InvalidArgument(
+            "normal remeshing: the input has no triangles".to_string(),
+        ));
+    }
+    if let Some((k, t)) = input_tris
+        .iter()
+        .enumerate()
+        .find(|(_, t)| t.iter().any(|&i| i as usize >= input_pos.len()))
+    {
+        return Err(Error::InvalidArgument(format!(
+            "normal remeshing: input triangle {k} names vertex {} of {}",
+            t.iter().max().copied().unwrap_or(0),
+            input_pos.len()
+        )));
+    }
+    let normals = input_tris
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| input_pos[i as usize]);
+            (b - a).cross(c - a).normalize_or_zero()
+        })
+        .collect();
+    let shape = TriMesh::new(
+        input_pos
+            .iter()
+            .map(|p| parry3d_f64::math::Vector::new(p.x, p.y, p.z))
+            .collect(),
+        input_tris.to_vec(),
+    )
+    .map_err(|e| Error::InvalidArgument(format!("cannot index the input triangles: {e:?}")))?;
+    let surface = Surface { shape, normals };
+    let levels = h.levels();
+    let features = feature_edges(&h.topologies);
+    let mut stats = NormalStats::default();
+    // The wavelet borrows `h`; work on a copy of the positions and write them back.
+    let mut pos = h.positions.clone();
+    {
+        let w = TriangleWavelet::from_scheme(
+            h,
+            &SubdivideOptions {
+                scheme: Scheme::Butterfly,
+                ..Default::default()
+            },
+            false,
+        )?;
+        for (j, feature) in features.iter().enumerate().take(levels) {
+            let coarse_topo = h.topology(j);
+            let fine_topo = h.topology(j + 1);
+            let nc = coarse_topo.num_vertices as usize;
+            let nf = fine_topo.num_vertices as usize;
+            let predicted = w.predict(j, &pos[..nc])?;
+            let frames = odd_vertex_frames(coarse_topo, fine_topo, &predicted);
+            // Vertices on a boundary or feature curve of this level: the odd vertices of edges
+            // touching them keep their MAPS positions (a normal line next to a crease can
+            // cross to the crease's other side).
+            let mut on_curve = vec![false; nc];
+            for (e, [a, b]) in coarse_topo.edge_vertices.iter().enumerate() {
+                if feature[e] {
+                    on_curve[*a as usize] = true;
+                    on_curve[*b as usize] = true;
+                }
+            }
+            let (coarse, odd) = pos[..nf].split_at_mut(nc);
+            let coarse: &[DVec3] = coarse;
+            let (pierced, projected) = odd
+                .par_iter_mut()
+                .with_min_len(1024)
+                .enumerate()
+                .map(|(e, x)| {
+                    if feature[e] || j < opts.from_level {
+                        return (0, 0);
+                    }
+                    let [a, b] = coarse_topo.edge_vertices[e];
+                    if opts.keep_near_curves && (on_curve[a as usize] || on_curve[b as usize]) {
+                        return (0, 0);
+                    }
+                    let len = coarse[a as usize].distance(coarse[b as usize]);
+                    let p = predicted[nc + e];
+                    let n = frames[e].normal;
+                    if !len.is_finite() || len <= 0.0 || !p.is_finite() {
+                        return (0, 0);
+                    }
+                    let reach = opts.reach * len;
+                    if let Some(q) = surface.pierce(p, n, reach, opts.min_cos) {
+                        *x = q;
+                        return (1, 0);
+                    }
+                    // Not pierced: the closest input point of the prediction (its detail is
+                    // along the input's normal there, nearly the predicted normal).
+                    match surface.closest(p, n, opts.min_cos) {
+                        Some(q) if q.distance(p) <= reach => *x = q,
+                        _ => return (0, 0),
+                    }
+                    (0, 1)
+                })
+                .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+            stats.odd.push(nf - nc);
+            stats.normal.push(pierced);
+            stats.projected.push(projected);
+        }
+    }
+    h.positions = pos;
+    Ok(stats)
+}
+
+/// The input surface with its oriented triangle normals.
+struct Surface {
+    shape: TriMesh,
+    normals: Vec<DVec3>,
+}
+
+impl Surface {
+    /// The nearest intersection of the line `p + t n`, `|t| ≤ reach`, with the input, if the
+    /// hit triangle faces the same way as `n` (cosine at least `min_cos`).
+    fn pierce(&self, p: DVec3, n: DVec3, reach: f64, min_cos: f64) -> Option<DVec3> {
+        let origin = parry3d_f64::math::Vector::new(p.x, p.y, p.z);
+        // (signed distance along n, hit triangle) of the nearest hit.
+        let mut best: Option<(f64, u32)> = None;
+        for sign in [1.0, -1.0] {
+            let d = sign * n;
+            let ray = Ray::new(origin, parry3d_f64::math::Vector::new(d.x, d.y, d.z));
+            if let Some(hit) = self.shape.cast_local_ray_and_get_normal(&ray, reach, false) {
+                let t = hit.time_of_impact;
+                if best.is_none_or(|(bt, _)| t < bt.abs()) {
+                    best = Some((sign * t, hit.subshape));
+                }
+            }
+        }
+        let (t, tri) = best?;
+        (self.normals.get(tri as usize)?.dot(n) >= min_cos).then_some(p + t * n)
+    }
+
+    /// The closest input point to `p`, if its triangle faces the same way as `n`.
+    fn closest(&self, p: DVec3, n: DVec3, min_cos: f64) -> Option<DVec3> {
+        let (proj, (tri, _)) = self.shape.project_local_point_and_get_location(
+            parry3d_f64::math::Vector::new(p.x, p.y, p.z),
+            false,
+        );
+        (self.normals.get(tri as usize)?.dot(n) >= min_cos).then_some(DVec3::new(
+            proj.point.x,
+            proj.point.y,
+            proj.point.z,
+        ))
+    }
+}
+
+/// For each level `j < L`, which of its edges lie on a boundary or on a base feature edge
+/// (crease sharpness > 0 at level 0; halves of such edges at finer levels).
+fn feature_edges(topologies: &[Topology]) -> Vec<Vec<bool>> {
+    let mut out: Vec<Vec<bool>> = Vec::with_capacity(topologies.len());
+    for (j, t) in topologies.iter().enumerate() {
+        let mut f: Vec<bool> = (0..t.num_edges())
+            .map(|e| t.is_boundary_edge(e) || t.edge_sharpness.get(e).is_some_and(|&s| s > 0.0))
+            .collect();
+        if j > 0 {
+            let parent = &topologies[j - 1];
+            let nc = parent.num_vertices;
+            let pf = &out[j - 1];
+            for (e, [a, b]) in t.edge_vertices.iter().enumerate() {
+                // A half of parent edge `m - nc` joins the odd vertex `m` to an end of it.
+                let (m, o) = if *a >= nc && *b < nc {
+                    (*a, *b)
+                } else if *b >= nc && *a < nc {
+                    (*b, *a)
+                } else {
+                    continue;
+                };
+                let pe = (m - nc) as usize;
+                if pe < pf.len() && pf[pe] && parent.edge_vertices[pe].contains(&o) {
+                    f[e] = true;
+                }
+            }
+        }
+        out.push(f);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::generate;
+    use crate::remesh::{remesh, RemeshOptions};
+    use crate::wavelet::triangle::DetailFrame;
+
+    /// A sphere remeshed from an irregular-ish input: after normal re-sampling most odd
+    /// vertices are normal, every moved vertex lies on the input, and the unlifted butterfly
+    /// details of the moved vertices have (numerically) zero tangential components.
+    #[test]
+    fn normal_vertices_have_scalar_details() {
+        let input = generate::torus(1.0, 0.4, 64, 32, true);
+        let r = remesh(
+            &input,
+            &RemeshOptions {
+                levels: 3,
+                base_faces: 60,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let mut h = r.hierarchy.clone();
+        let tris: Vec<[u32; 3]> = input
+            .faces()
+            .flat_map(|f| (1..f.len() - 1).map(move |k| [f[0], f[k], f[k + 1]]))
+            .collect();
+        // The default leaves the first two steps to MAPS.
+        let mut h2 = r.hierarchy.clone();
+        let s2 =
+            normal_resample(&mut h2, &input.positions, &tris, &NormalOptions::default()).unwrap();
+        assert_eq!(&s2.normal[..2], &[0, 0]);
+        assert!(s2.normal[2] > 0);
+        let all = NormalOptions {
+            from_level: 0,
+            ..Default::default()
+        };
+        let stats = normal_resample(&mut h, &input.positions, &tris, &all).unwrap();
+        assert_eq!(stats.odd.len(), 3);
+        // The unlifted butterfly details in local frames.
+        let w = TriangleWavelet::from_scheme(
+            &h,
+            &SubdivideOptions {
+                scheme: Scheme::Butterfly,
+                ..Default::default()
+            },
+            false,
+        )
+        .unwrap()
+        .with_frame(DetailFrame::Local);
+        let mut data = h.positions.clone();
+        w.decompose_in_place(&mut data).unwrap();
+        // Distance to the torus (major radius 1, minor 0.4, around z).
+        let torus = |p: &DVec3| (DVec3::new(p.x.hypot(p.y) - 1.0, p.z, 0.0).length() - 0.4).abs();
+        let nb = h.num_vertices(0);
+        let (mut tangential, mut normal) = (0.0f64, 0.0f64);
+        for d in &data[nb..] {
+            normal += d.x * d.x;
+            tangential += d.y * d.y + d.z * d.z;
+        }
+        assert!(
+            tangential < 1e-6 * normal,
+            "tangential energy {tangential:e} vs normal {normal:e}"
+        );
+        // Moved vertices lie on the input (within its chord error, < 0.004 here).
+        let before = &r.hierarchy.positions;
+        let mut moved = 0;
+        for (i, (p, q)) in h.positions.iter().zip(before).enumerate() {
+            if p != q {
+                moved += 1;
+                assert!(torus(p) < 5e-3, "vertex {i} at {p}: {}", torus(p));
+            }
+        }
+        assert_eq!(
+            moved,
+            stats.normal.iter().chain(&stats.projected).sum::<usize>()
+        );
+        assert!(
+            stats.normal_fraction() > 0.8,
+            "only {:.1}% normal: {stats:?}",
+            100.0 * stats.normal_fraction()
+        );
+    }
+
+    #[test]
+    fn refuses_quads_and_bad_input() {
+        let input = generate::torus(1.0, 0.4, 16, 8, true);
+        let r = remesh(
+            &input,
+            &RemeshOptions {
+                levels: 1,
+                base_faces: 40,
+                quads: true,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let mut h = r.hierarchy.clone();
+        assert!(
+            normal_resample(&mut h, &input.positions, &[[0, 1, 2]], &Default::default()).is_err()
+        );
+        let r = remesh(
+            &input,
+            &RemeshOptions {
+                levels: 1,
+                base_faces: 40,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let mut h = r.hierarchy.clone();
+        let err = normal_resample(
+            &mut h,
+            &input.positions,
+            &[[0, 1, 99999]],
+            &Default::default(),
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("triangle 0"), "{err}");
+        assert!(normal_resample(&mut h, &input.positions, &[], &Default::default()).is_err());
+    }
+}
