@@ -293,3 +293,52 @@ fn corpus_targets_at_five_levels() {
         assert!(d.max <= 0.005 * d.diagonal);
     }
 }
+
+/// A folded parameterization (two neighbouring input vertices with swapped parameters, so
+/// their triangles' images turn over) is untangled: the number of input triangles with an
+/// inverted or degenerate image goes back to what it was without the swaps.
+#[test]
+fn folded_parameters_are_untangled() {
+    use subwave::remesh::{param, simplify};
+    let input = generate::icosphere(4);
+    let tris: Vec<[u32; 3]> = input.faces().map(|f| [f[0], f[1], f[2]]).collect();
+    let s = simplify::simplify(
+        &input.positions,
+        &tris,
+        &simplify::PairSet::default(),
+        60,
+        None,
+        &mut |_| {},
+    );
+    let base = Mesh::from_triangles(s.positions.clone(), &s.triangles);
+    let fixed: Vec<bool> = s.params.iter().map(|p| p.bary.contains(&1.0)).collect();
+    // The tracked parameterization, untangled.
+    let mut params = s.params.clone();
+    let (b0, a0) = param::untangle_params(&base, &tris, &mut params, &fixed, 4);
+    assert!(a0 <= b0);
+    // Swap the parameters of the two free corners of a few triangles whose corners are all
+    // free.
+    let mut swapped = 0;
+    let mut used = vec![false; params.len()];
+    for t in &tris {
+        let [a, b, c] = t.map(|v| v as usize);
+        if swapped == 3 || [a, b, c].iter().any(|&v| fixed[v] || used[v]) {
+            continue;
+        }
+        params.swap(a, b);
+        for v in [a, b, c] {
+            used[v] = true;
+        }
+        swapped += 1;
+    }
+    assert_eq!(swapped, 3);
+    let (before, after) = param::untangle_params(&base, &tris, &mut params, &fixed, 4);
+    assert!(before >= a0 + 3, "{before}");
+    assert!(after <= a0, "{before} -> {after} (untouched: {b0} -> {a0})");
+    // Every input vertex keeps a valid parameter.
+    for p in &params {
+        assert!((p.face as usize) < s.triangles.len());
+        assert!(p.bary.iter().all(|&x| (0.0..=1.0).contains(&x)));
+        assert!((p.bary.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+    }
+}

@@ -229,7 +229,7 @@ pub fn remesh_with_progress(
 
     // 2. Simplify with parameter tracking.
     let t = Instant::now();
-    let s = simplify::simplify(
+    let mut s = simplify::simplify(
         &pos,
         &tris,
         &features,
@@ -244,6 +244,24 @@ pub fn remesh_with_progress(
     // 3. Parameterization.
     let t = Instant::now();
     progress("parameterize", 0.0);
+    // Input vertices whose parameter is a base vertex or on a boundary or feature chain.
+    let param_fixed: Vec<bool> = s
+        .params
+        .iter()
+        .map(|p| {
+            let t = s.triangles[p.face as usize];
+            p.bary.contains(&1.0)
+                || (0..3).any(|k| {
+                    p.bary[k] == 0.0 && {
+                        let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+                        s.chain_edges.contains(&(a.min(b), a.max(b)))
+                    }
+                })
+        })
+        .collect();
+    let (bad_before, bad_after) =
+        param::untangle_params(&base_tri, &tris, &mut s.params, &param_fixed, 4);
+    tracing::debug!(bad_before, bad_after, "folded input-triangle images");
     let map = param::ParamMap::new(&base_tri, &pos, &tris, &s.params);
     timings.parameterize_ms = ms(t);
     progress("parameterize", 1.0);

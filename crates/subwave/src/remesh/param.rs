@@ -376,3 +376,257 @@ fn build_chart(topo: &Topology, tris: &[[u32; 3]], t: usize) -> Vec<(u32, Mat)> 
     }
     out
 }
+
+/// `p` in base triangle `t`'s frame: directly, as a base vertex that is a corner of `t`, or
+/// through `t`'s chart.
+fn frame_of(
+    charts: &[Vec<(u32, Mat)>],
+    base_tris: &[[u32; 3]],
+    t: u32,
+    p: &Param,
+) -> Option<[f64; 3]> {
+    if p.face == t {
+        return Some(p.bary);
+    }
+    if let Some(k) = p.bary.iter().position(|&x| x == 1.0) {
+        let w = base_tris[p.face as usize][k];
+        if let Some(c) = base_tris[t as usize].iter().position(|&x| x == w) {
+            let mut b = [0.0; 3];
+            b[c] = 1.0;
+            return Some(b);
+        }
+    }
+    charts[t as usize]
+        .iter()
+        .find(|(f, _)| *f == p.face)
+        .map(|(_, m)| mul(m, p.bary))
+}
+
+/// The coordinates `x` with `m · x = c` (Cramer's rule); `None` if `m` is singular.
+fn solve(m: &Mat, c: [f64; 3]) -> Option<[f64; 3]> {
+    let det3 = |a: [f64; 3], b: [f64; 3], d: [f64; 3]| {
+        a[0] * (b[1] * d[2] - b[2] * d[1]) - b[0] * (a[1] * d[2] - a[2] * d[1])
+            + d[0] * (a[1] * b[2] - a[2] * b[1])
+    };
+    let det = det3(m[0], m[1], m[2]);
+    if det.abs() < 1e-300 {
+        return None;
+    }
+    Some([
+        det3(c, m[1], m[2]) / det,
+        det3(m[0], c, m[2]) / det,
+        det3(m[0], m[1], c) / det,
+    ])
+}
+
+/// The parameter of the point with coordinates `c` in `t`'s frame: in `t` if inside, else in
+/// the chart triangle containing it (edge neighbours first, as the chart is ordered breadth
+/// first). `None` if no triangle of the chart contains it.
+fn relocate(charts: &[Vec<(u32, Mat)>], t: u32, c: [f64; 3]) -> Option<Param> {
+    let norm = |x: [f64; 3]| {
+        let x = x.map(|v| v.max(0.0));
+        let s = x[0] + x[1] + x[2];
+        x.map(|v| v / s)
+    };
+    if c.iter().all(|&v| v >= 0.0) {
+        return Some(Param {
+            face: t,
+            bary: norm(c),
+        });
+    }
+    for (f, m) in &charts[t as usize] {
+        if let Some(x) = solve(m, c) {
+            if x.iter().all(|&v| v >= -1e-12) {
+                return Some(Param {
+                    face: *f,
+                    bary: norm(x),
+                });
+            }
+        }
+    }
+    None
+}
+
+/// Twice the signed area of input triangle `tri`'s image in the base domain (in the frame of
+/// one of its corners' base triangles); `None` if no frame holds all three corners.
+fn image_area(
+    charts: &[Vec<(u32, Mat)>],
+    base_tris: &[[u32; 3]],
+    params: &[Param],
+    tri: [u32; 3],
+) -> Option<f64> {
+    for &v in &tri {
+        let t = params[v as usize].face;
+        let b: Option<Vec<[f64; 3]>> = tri
+            .iter()
+            .map(|&w| frame_of(charts, base_tris, t, &params[w as usize]))
+            .collect();
+        if let Some(b) = b {
+            return Some(
+                (b[1][1] - b[0][1]) * (b[2][2] - b[0][2])
+                    - (b[2][1] - b[0][1]) * (b[1][2] - b[0][2]),
+            );
+        }
+    }
+    None
+}
+
+/// Gauss-Seidel sweeps of [`untangle_params`] per round.
+const TUTTE_SWEEPS: usize = 30;
+
+/// Untangles the parameterization (the images of the input triangles in the base domain must
+/// not overlap, or a base-domain point has several images and [`ParamMap::locate`] may pick
+/// the wrong one, far from its neighbours'): every input triangle whose image is inverted,
+/// degenerate, or spread over base triangles no chart holds together is *bad*; the free
+/// vertices of the bad triangles and their rings (growing by one ring per round, up to
+/// `rounds` rounds) are moved towards the average of their neighbours' parameters (Tutte's
+/// barycentric embedding, Gauss-Seidel, in the chart of the vertex's base triangle or of a
+/// neighbour's), which embeds a disc with a convex boundary without folds (Floater 1997); as
+/// the regions' boundaries need not be convex, a move is kept only if it does not add bad
+/// triangles around the vertex, so the count never grows. `fixed` vertices (base vertices,
+/// boundary and feature points on their chains) keep their parameters.
+///
+/// Returns the number of bad input triangles before and after.
+///
+/// Preconditions: as [`ParamMap::new`]; `fixed.len() == params.len()`.
+pub fn untangle_params(
+    base: &Mesh,
+    input_tris: &[[u32; 3]],
+    params: &mut [Param],
+    fixed: &[bool],
+    rounds: u32,
+) -> (usize, usize) {
+    let topo = Topology::build(base);
+    let base_tris: Vec<[u32; 3]> = base.faces().map(|f| [f[0], f[1], f[2]]).collect();
+    let charts: Vec<Vec<(u32, Mat)>> = (0..base.num_faces())
+        .into_par_iter()
+        .map(|t| build_chart(&topo, &base_tris, t))
+        .collect();
+    let nv = params.len();
+    let is_bad = |params: &[Param], tri: [u32; 3]| {
+        image_area(&charts, &base_tris, params, tri).is_none_or(|a| a <= 1e-18)
+    };
+    let bad: Vec<bool> = input_tris.par_iter().map(|&t| is_bad(params, t)).collect();
+    let before = bad.iter().filter(|&&b| b).count();
+    if before == 0 {
+        return (0, 0);
+    }
+    // Vertex → faces and vertex → neighbours of the input.
+    let mut vf: Vec<Vec<u32>> = vec![Vec::new(); nv];
+    let mut nb: Vec<Vec<u32>> = vec![Vec::new(); nv];
+    for (f, t) in input_tris.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (t[k] as usize, t[(k + 1) % 3]);
+            vf[a].push(f as u32);
+            if !nb[a].contains(&b) {
+                nb[a].push(b);
+            }
+            if !nb[b as usize].contains(&t[k]) {
+                nb[b as usize].push(t[k]);
+            }
+        }
+    }
+    let mut bad_faces: Vec<u32> = (0..input_tris.len() as u32)
+        .filter(|&f| bad[f as usize])
+        .collect();
+    let mut after = before;
+    for round in 0..rounds {
+        if bad_faces.is_empty() {
+            break;
+        }
+        let mut region = vec![false; nv];
+        for &f in &bad_faces {
+            for &v in &input_tris[f as usize] {
+                region[v as usize] = true;
+            }
+        }
+        for _ in 0..(round + 1).min(6) {
+            let grown = region.clone();
+            for (v, &r) in grown.iter().enumerate() {
+                if r {
+                    for &w in &nb[v] {
+                        region[w as usize] = true;
+                    }
+                }
+            }
+        }
+        let verts: Vec<usize> = (0..nv).filter(|&v| region[v] && !fixed[v]).collect();
+        let mut stuck = 0;
+        for _ in 0..TUTTE_SWEEPS {
+            for &v in &verts {
+                if nb[v].is_empty() {
+                    continue;
+                }
+                // The frame: the vertex's base triangle, or (if it sits in a base triangle
+                // far from its neighbours') a neighbour's.
+                let frames = std::iter::once(params[v].face)
+                    .chain(nb[v].iter().map(|&w| params[w as usize].face));
+                let mut avg = None;
+                for t in frames {
+                    let mut c = [0.0; 3];
+                    let mut ok = true;
+                    for &w in &nb[v] {
+                        match frame_of(&charts, &base_tris, t, &params[w as usize]) {
+                            Some(b) => {
+                                for k in 0..3 {
+                                    c[k] += b[k];
+                                }
+                            }
+                            None => {
+                                ok = false;
+                                break;
+                            }
+                        }
+                    }
+                    if ok {
+                        avg = Some((t, c));
+                        break;
+                    }
+                }
+                let Some((t, c)) = avg else {
+                    stuck += 1;
+                    continue;
+                };
+                let n = nb[v].len() as f64;
+                match relocate(&charts, t, c.map(|x| x / n)) {
+                    Some(p) => {
+                        // Only moves that do not add bad triangles around the vertex.
+                        let count = |params: &[Param]| {
+                            vf[v]
+                                .iter()
+                                .filter(|&&f| is_bad(params, input_tris[f as usize]))
+                                .count()
+                        };
+                        let now = count(params);
+                        let old = params[v];
+                        params[v] = p;
+                        if count(params) > now {
+                            params[v] = old;
+                        }
+                    }
+                    None => stuck += 1,
+                }
+            }
+        }
+        let mut faces: Vec<u32> = verts.iter().flat_map(|&v| vf[v].iter().copied()).collect();
+        faces.extend_from_slice(&bad_faces);
+        faces.sort_unstable();
+        faces.dedup();
+        let cur: &[Param] = params;
+        bad_faces = faces
+            .par_iter()
+            .copied()
+            .filter(|&f| is_bad(cur, input_tris[f as usize]))
+            .collect();
+        after = bad_faces.len();
+        tracing::debug!(
+            round,
+            bad = after,
+            region = verts.len(),
+            stuck,
+            "parameter untangling"
+        );
+    }
+    // Faces outside the regions did not change.
+    (before, after)
+}

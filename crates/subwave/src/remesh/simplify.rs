@@ -16,12 +16,14 @@
 //! - **Parameterization** (MAPS §3.3, "tracking the parameterization"): every removed input
 //!   vertex keeps a position `(face, barycentric)` over the current mesh. When a collapse
 //!   changes the star of `u`, the points that lived in that star (and `u` itself) are
-//!   re-attached to the closest point of the new star's triangles, chain points (boundary
-//!   and feature vertices) to the closest point of the new star's chain edges, so that
-//!   boundaries and creases are parameterized over base edges. MAPS uses a conformal map of
-//!   the 1-ring for this step; the closest-point re-attachment is the projection variant
-//!   (as in Guskov et al.'s normal meshes, 2000), cheaper and equal on the nearly planar
-//!   stars of a dense input.
+//!   located in the new star's triangles in the plane the old star is flattened into (MAPS
+//!   §3.2 flattens with the conformal `z^a`; here a polar map that keeps the radii, which
+//!   does not squeeze the neighbourhood of sharp tips, see `State::flatten`); points outside
+//!   every flattened triangle (or all, if the new star folds in the plane) are re-attached to
+//!   the closest point of the new star's triangles (the projection variant, as in Guskov et
+//!   al.'s normal meshes, 2000), chain points (boundary and feature vertices) to the closest
+//!   point of the new star's chain edges, so that boundaries and creases are parameterized
+//!   over base edges.
 
 #![allow(clippy::needless_range_loop)] // parallel arrays indexed by vertex and face
 
@@ -469,8 +471,13 @@ impl State<'_> {
     }
 
     /// The star of `u` flattened as in MAPS §3.2: `u` at the origin, each ring vertex at
-    /// angle (cumulative 3D angle) · `2π / Θ` (`π / Θ` on a boundary) and radius
-    /// `(r / r_max)^(2π / Θ)`. `None` if the ring is not one fan.
+    /// angle (cumulative 3D angle) · `2π / Θ` (`π / Θ` on a boundary) and radius `r / r_max`.
+    /// MAPS's conformal map `z^(2π / Θ)` raises the radius to that power too; at a cone
+    /// vertex with a small angle sum (the tip of an ear, `Θ ≈ π`) that squeezes the points
+    /// near it towards it, and the collapses compound the squeeze, so the tips got a few
+    /// long resampled triangles cutting them off (the bunny's ear tips held 70% of the
+    /// squared distance at 6 levels). The polar map with the radius kept bounds the area
+    /// distortion by the angle factor alone. `None` if the ring is not one fan.
     fn flatten(&self, u: u32, faces: &[u32]) -> Option<Vec<(u32, [f64; 2])>> {
         let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(faces.len());
         for &f in faces {
@@ -528,7 +535,7 @@ impl State<'_> {
         let mut out = Vec::with_capacity(n);
         let mut phi = 0.0f64;
         for i in 0..n {
-            let r = (d[i].length() / rmax).powf(a);
+            let r = d[i].length() / rmax;
             out.push((ring[i], [r * phi.cos(), r * phi.sin()]));
             if i < steps {
                 phi += a * angles[i];
