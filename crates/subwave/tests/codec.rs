@@ -635,3 +635,67 @@ fn golden_bytes_of_a_small_lossless_stream() {
     .unwrap();
     assert_eq!(d.mesh.positions, grid_points(&golden, &hs));
 }
+
+/// A Loop subdivision surface: a bumpy icosphere refined `levels` times by Loop's rules.
+fn loop_surface(levels: u32) -> Hierarchy {
+    use subwave::subdivision::{subdivide, Scheme, SubdivideOptions};
+    let mut base = generate::icosphere(1);
+    for p in &mut base.positions {
+        let d = p.normalize();
+        *p = d * (1.0 + 0.15 * (4.0 * d.x).sin() * (3.0 * d.y).cos());
+    }
+    let opts = SubdivideOptions {
+        scheme: Scheme::Loop,
+        levels,
+        ..Default::default()
+    };
+    let fine = subdivide(&base, &opts).unwrap();
+    Hierarchy::new(&base, levels, Split::Triangles, Some(fine.positions)).unwrap()
+}
+
+#[test]
+fn lossless_loop_surfaces_use_a_reference_surface() {
+    let h = loop_surface(3);
+    let opts = EncodeOptions {
+        lossless: true,
+        bits: 14,
+        ..Default::default()
+    };
+    let (s, hs) = encode_with_info(&h, &opts).unwrap();
+    let info = inspect(&s).unwrap();
+    // A reference stream: the base chunk starts with the control points' extra bits (a
+    // plain stream's base chunk starts with the base-mesh magic "SWBM").
+    let b = s[info.chunks[0].offset as usize];
+    assert!(b == 2 || b == 4, "base chunk starts with {b}");
+    let want = grid_points(&s, &hs);
+    let d = full(&s);
+    assert!(d.complete);
+    assert_eq!(d.mesh.positions, want);
+    // Far below a byte per vertex: the residuals are rounding differences.
+    assert!(s.len() < hs.positions.len() / 2, "{} bytes", s.len());
+    // Level prefixes are exact on their levels.
+    for (j, c) in info.chunks.iter().enumerate().skip(1) {
+        let d = decode(
+            &s,
+            &DecodeOptions {
+                max_bytes: Some(c.offset as usize + c.len as usize),
+                trees: None,
+            },
+        )
+        .unwrap();
+        let n = hs.num_vertices(j);
+        assert_eq!(d.mesh.positions[..n], want[..n], "level {j}");
+    }
+    // Corrupt data behind valid checksums never panics.
+    let mut x = 3u64;
+    for _ in 0..300 {
+        x = x
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let i = (x >> 40) as usize % info.chunks.len();
+        let m = corrupt_behind_crc(&s, i, (x >> 20) as usize, (x >> 8) as u8 | 1);
+        if let Ok(d) = decode(&m, &DecodeOptions::default()) {
+            assert!(d.mesh.positions.iter().all(|p| p.is_finite()));
+        }
+    }
+}

@@ -14,18 +14,40 @@
 //! base-mesh coder's integer API ([`super::basemesh::encode_integers`]: valence-driven
 //! connectivity, parallelogram prediction), which renumbers the base; the hierarchy is
 //! re-indexed to that order. Then one chunk per level `j = 0..L` (container kind
-//! [`super::container::ChunkKind::Level`], id `j`) holds the details of the odd vertices of
+//! [`super::container::ChunkKind::Level`], id `j`) holds the residuals of the odd vertices of
 //! level `j + 1` (`V_j..V_{j+1}` in contract order):
 //!
 //! ```text
-//! predictor u8      triangles: 0 midpoint, 1 butterfly (chosen per level by the encoder);
-//!                   quads: 0 (the stream's B-spline wavelet)
-//! range-coder data  per odd vertex, per component x, y, z: zero flag, sign, |d| − 1
+//! predictor u8      triangles: the mode below (chosen per level by the encoder); quads: 0
+//! range-coder data  per vertex, per component x, y, z: zero flag, sign, |d| − 1
 //! ```
 //!
+//! **Triangle hierarchies** use pure prediction (no update step: the level-`j` vertices keep
+//! their exact finest positions, so every level chunk decodes to an exact coarser mesh):
+//! `d = x − ⌊P + ½⌋` with `P` one of (mode byte) 0 midpoint, 1 butterfly (the stencils of
+//! [`crate::subdivision`]), 2 their mean, or, in **reference streams**, 3 the reference
+//! surface `R`, 4 `R` plus the midpoint interpolation of the residual field `x − R` of the
+//! level-`j` vertices, 5 the same with butterfly. The encoder codes each level with every
+//! mode and keeps the smallest.
+//!
+//! A **reference stream** (flag `F_REFERENCE` of [`super::progressive`]) targets meshes that
+//! are (close to) Loop subdivision surfaces, which interpolating predictors predict poorly:
+//! the encoder fits control points `X_0` of the base mesh by least squares
+//! (`argmin ‖S^L X_0 − y‖²`, CGLS over the Loop stencil tables, `loop_fit`), rounds them
+//! to `2^-k` grid steps (`k` from `REFERENCE_BITS`, the smaller stream wins), and
+//! codes them in the base chunk (`k: u8`, then the base-mesh integer stream). Both sides
+//! compute `R = S^L X_0` with the same f64 code (`reference_surface`); on an exactly
+//! Loop-subdivided input the residuals are then only rounding differences, mostly zero, and
+//! the phase contexts (below) code them in a fraction of a bit. Level chunk 0 starts with
+//! the residuals of the base vertices against `⌊R + ½⌋`. The encoder also codes the plain
+//! stream and keeps the smaller.
+//!
+//! **Quad hierarchies** use Bertram's integer B-spline lifting (the stream's wavelet) and
+//! code its details level by level with the same contexts.
+//!
 //! Each level chunk decodes after the base and the coarser levels only, so any prefix of the
-//! stream decodes to the levels it holds exactly (a cut level up to the first missing byte),
-//! synthesized to the finest connectivity with zero finer details.
+//! stream decodes to the levels it holds exactly (a cut level up to the first missing byte);
+//! the missing residuals are zero.
 //!
 //! # Contexts
 //! For odd vertex `v` and component `c`, with `N(v)` its neighbours in the level-`j + 1`
@@ -33,13 +55,19 @@
 //! this level (`V_j ≤ w < v`), weighted 2:1 with the mean over those coded at coarser levels
 //! (`V_0 ≤ w < V_j`), averaged with the largest `|d|` of the components of `v` already coded.
 //! Its bit length selects the class (24 classes). The zero flag is coded in contexts of
-//! (level, component, class, phase), the sign in contexts of (level, component, sign of the
-//! same-level neighbours' sum, phase), the magnitude with an adaptive Elias-gamma model
-//! ([`UInt`]) per (level, component, class). The **phase** is, for unlifted triangle
-//! transforms (pure interpolating prediction), where the unrounded prediction falls between
-//! two rounding ties ([`IntTriangleWavelet::prediction_phases`]): on exactly subdivided
-//! input the detail is the rounding difference, whose zero probability and sign depend on
-//! it. Lifted and quad transforms use one phase.
+//! (component, class, phase), the sign in contexts of (component, sign of the same-level
+//! neighbours' sum, phase), the magnitude with an adaptive Elias-gamma model ([`UInt`]) per
+//! (component, class); every level starts with fresh models. The **phase** of a triangle
+//! prediction is where the unrounded `P` falls between two rounding ties (8 bins of
+//! `P + ½ − ⌊P + ½⌋`): on exactly subdivided input the residual is a rounding difference,
+//! whose zero probability and sign depend on it. Quad details use one phase.
+//!
+//! # Determinism
+//! Predictions are evaluated in `f64` in stencil order (IEEE 754, no fused multiply-adds),
+//! identically in the encoder and the decoder of one build. The butterfly's extraordinary
+//! and Loop's masks have real weights computed with `cos`, whose last bit may differ between
+//! C libraries: streams are exact between machines whose `libm` agrees (as for
+//! [`crate::wavelet::triangle_int`]).
 //!
 //! # Decoder safety
 //! Every count comes from the validated header ([`super::progressive`]); the base chunk's
@@ -47,6 +75,7 @@
 //! every level (a corrupt stream is an error, never an overflow).
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use super::basemesh;
 use super::container::{ChunkEntry, ChunkKind, Container};
@@ -55,120 +84,51 @@ use super::rangecoder::{Bit, Decoder, Encoder, UInt};
 use crate::hierarchy::Hierarchy;
 use crate::mesh::Mesh;
 use crate::subdivision::refine::Split;
-use crate::subdivision::{Scheme, SubdivideOptions};
+use crate::subdivision::stencil::StencilTable;
+use crate::subdivision::{Refinement, Scheme, SubdivideOptions};
 use crate::topology::Topology;
 use crate::wavelet::bertram::{BSplineWavelet, Degree};
-use crate::wavelet::triangle_int::{IntTriangleWavelet, MAX_COORD};
+use crate::wavelet::triangle_int::MAX_COORD;
 use crate::{Error, Result};
 
-/// Prediction of a triangle level: midpoint.
-const PRED_MIDPOINT: u8 = 0;
-/// Prediction of a triangle level: butterfly.
-const PRED_BUTTERFLY: u8 = 1;
+/// Triangle level predictor: midpoint.
+const MODE_MIDPOINT: u8 = 0;
+/// Triangle level predictor: butterfly.
+const MODE_BUTTERFLY: u8 = 1;
+/// Triangle level predictor: the mean of midpoint and butterfly.
+const MODE_HALF: u8 = 2;
+/// Reference streams: the reference surface.
+const MODE_REF: u8 = 3;
+/// Reference streams: the reference plus the midpoint interpolation of the residual field.
+const MODE_REF_MIDPOINT: u8 = 4;
+/// Reference streams: the reference plus the butterfly interpolation of the residual field.
+const MODE_REF_BUTTERFLY: u8 = 5;
 /// Magnitude classes.
 const CLASSES: usize = 24;
-/// Phase bins ([`IntTriangleWavelet::prediction_phases`]).
+/// Phase bins of a prediction (where it falls between two rounding ties).
 const PHASES: usize = 8;
+/// Extra bits of the reference control points over the grid, tried by the encoder.
+const REFERENCE_BITS: [u8; 2] = [2, 4];
+/// Largest extra precision a decoder accepts.
+const MAX_REFERENCE_BITS: u8 = 8;
 
-/// The integer transform of a lossless stream, applied level by level.
-pub(crate) enum Transform<'h> {
-    /// Triangle hierarchies: midpoint and butterfly (chosen per level), lifted or not.
-    Tri {
-        h: &'h Hierarchy,
-        lifted: bool,
-        mid: Option<IntTriangleWavelet<'h>>,
-        bfly: Option<IntTriangleWavelet<'h>>,
-    },
-    /// Quad hierarchies: Bertram's integer B-spline lifting.
-    Quad(BSplineWavelet, &'h [Topology]),
+/// `⌊y⌋` for `|y| < 2^62`, exact (no libm call).
+#[inline]
+fn floor_i64(y: f64) -> i64 {
+    let t = y as i64;
+    if (t as f64) > y {
+        t - 1
+    } else {
+        t
+    }
 }
 
-impl<'h> Transform<'h> {
-    /// The transform of `h`: B-spline of `degree` on quad hierarchies, else the triangle
-    /// wavelets (built when first needed).
-    pub(crate) fn new(h: &'h Hierarchy, degree: Degree, lifted: bool) -> Self {
-        if h.split == Split::Triangles {
-            Transform::Tri {
-                h,
-                lifted,
-                mid: None,
-                bfly: None,
-            }
-        } else {
-            Transform::Quad(BSplineWavelet::new(degree), &h.topologies[..h.levels()])
-        }
-    }
-
-    /// Whether the transform has prediction phases (unlifted triangles).
-    fn phased(&self) -> bool {
-        matches!(self, Transform::Tri { lifted: false, .. })
-    }
-
-    /// The predictors a level may use.
-    fn candidates(&self) -> &'static [u8] {
-        match self {
-            Transform::Tri { .. } => &[PRED_MIDPOINT, PRED_BUTTERFLY],
-            Transform::Quad(..) => &[0],
-        }
-    }
-
-    fn tri(&mut self, pred: u8) -> Result<&IntTriangleWavelet<'h>> {
-        let Transform::Tri {
-            h,
-            lifted,
-            mid,
-            bfly,
-        } = self
-        else {
-            return Err(Error::InvalidArgument("not a triangle transform".into()));
-        };
-        let (slot, scheme) = match pred {
-            PRED_MIDPOINT => (mid, Scheme::Midpoint),
-            PRED_BUTTERFLY => (bfly, Scheme::Butterfly),
-            p => return Err(Error::InvalidArgument(format!("unknown predictor {p}"))),
-        };
-        if slot.is_none() {
-            let opts = SubdivideOptions {
-                scheme,
-                ..Default::default()
-            };
-            *slot = Some(IntTriangleWavelet::from_scheme(h, &opts, *lifted)?);
-        }
-        slot.as_ref()
-            .ok_or_else(|| Error::InvalidArgument("triangle wavelet".into()))
-    }
-
-    /// One analysis step of level `j` (on `V_{j+1}` values).
-    fn forward_level(&mut self, pred: u8, j: usize, data: &mut [[i64; 3]]) -> Result<()> {
-        match self {
-            Transform::Quad(w, levels) => w.analyze_level_int(&levels[j], data),
-            Transform::Tri { .. } => {
-                self.tri(pred)?.forward_level(j, data);
-                Ok(())
-            }
-        }
-    }
-
-    /// One synthesis step of level `j` (on `V_{j+1}` values).
-    fn inverse_level(&mut self, pred: u8, j: usize, data: &mut [[i64; 3]]) -> Result<()> {
-        match self {
-            Transform::Quad(w, levels) => w.synthesize_level_int(&levels[j], data),
-            Transform::Tri { .. } => {
-                self.tri(pred)?.inverse_level(j, data);
-                Ok(())
-            }
-        }
-    }
-
-    /// Prediction phases of level `j`'s odd vertices from the even values (unlifted
-    /// triangles), else all zero.
-    fn phases(&mut self, pred: u8, j: usize, even: &[[i64; 3]], n: usize) -> Result<Vec<[u8; 3]>> {
-        if self.phased() {
-            Ok(self.tri(pred)?.prediction_phases(j, even))
-        } else {
-            Ok(vec![[0; 3]; n])
-        }
-    }
+/// The rounded prediction and its phase bin.
+#[inline]
+fn round_phase(p: f64) -> (i64, u8) {
+    let r = floor_i64(p + 0.5);
+    let f = (p + 0.5) - r as f64;
+    (r, ((f * PHASES as f64) as u8).min(PHASES as u8 - 1))
 }
 
 /// The adaptive models of one level.
@@ -194,26 +154,36 @@ fn bitlen(x: u64) -> usize {
     (64 - x.leading_zeros()) as usize
 }
 
-/// The neighbourhood statistics of odd vertex `v` of level `j + 1`: per component the sum of
-/// `|d|` and count of same-level and coarser-level coded neighbours, and the sign of the
-/// same-level neighbours' sum.
+/// The neighbourhood of a vertex being coded: expected magnitudes ×16 per component from
+/// the neighbours already coded (`None`: none), and the sign class of the same-level
+/// neighbours' sum.
 struct Context {
-    /// Expected magnitude ×16 per component from the neighbours (`None`: no neighbour).
     expect: Option<[u64; 3]>,
     sign: [usize; 3],
 }
 
-fn context(fine: &Topology, v: usize, v0: usize, vj: usize, res: &[[i64; 3]]) -> Context {
+/// Where a level's vertices are and which neighbours count.
+#[derive(Clone, Copy)]
+struct Span<'a> {
+    /// The mesh the vertices live in (level `j + 1`).
+    topo: &'a Topology,
+    /// Vertices below `first_coded` have no residual (not coded, or coded elsewhere).
+    first_coded: usize,
+    /// First vertex of the level (`V_j`).
+    first: usize,
+}
+
+fn context(s: Span, v: usize, res: &[[i64; 3]]) -> Context {
     let (mut ss, mut sc) = ([0u64; 3], [0u64; 3]);
     let (mut ns, mut nc) = (0u64, 0u64);
     let mut sg = [0i64; 3];
-    for &e in fine.vertex_edges(v) {
-        let w = fine.other_vertex(e as usize, v as u32) as usize;
-        if w >= v || w < v0 {
+    for &e in s.topo.vertex_edges(v) {
+        let w = s.topo.other_vertex(e as usize, v as u32) as usize;
+        if w >= v || w < s.first_coded {
             continue;
         }
         let r = res[w];
-        if w >= vj {
+        if w >= s.first {
             ns += 1;
             for c in 0..3 {
                 ss[c] += r[c].unsigned_abs();
@@ -252,11 +222,9 @@ fn class(ctx: &Context, c: usize, own: &[i64; 3]) -> usize {
     (1 + bitlen(e)).min(CLASSES - 1)
 }
 
-/// Codes the details `d` (odd vertices `V_j..V_{j+1}`) of level `j`.
+/// Codes the residuals `details` of vertices `s.first..` (with their phases).
 fn encode_level(
-    fine: &Topology,
-    v0: usize,
-    vj: usize,
+    s: Span,
     details: &[[i64; 3]],
     phases: &[[u8; 3]],
     res: &mut [[i64; 3]],
@@ -264,8 +232,8 @@ fn encode_level(
 ) {
     let mut m = Models::new();
     for (i, d) in details.iter().enumerate() {
-        let v = vj + i;
-        let ctx = context(fine, v, v0, vj, res);
+        let v = s.first + i;
+        let ctx = context(s, v, res);
         for c in 0..3 {
             let k = class(&ctx, c, d);
             let ph = phases[i][c] as usize;
@@ -280,20 +248,13 @@ fn encode_level(
     }
 }
 
-/// Decodes level `j`'s details into `res[V_j..]` (and returns how many vertices decoded
-/// before the data ran out).
-fn decode_level(
-    fine: &Topology,
-    v0: usize,
-    vj: usize,
-    phases: &[[u8; 3]],
-    res: &mut [[i64; 3]],
-    dec: &mut Decoder,
-) -> usize {
+/// Decodes the residuals of vertices `s.first..s.first + phases.len()` into `res`; returns
+/// how many vertices decoded before the data ran out.
+fn decode_level(s: Span, phases: &[[u8; 3]], res: &mut [[i64; 3]], dec: &mut Decoder) -> usize {
     let mut m = Models::new();
     for (i, ph) in phases.iter().enumerate() {
-        let v = vj + i;
-        let ctx = context(fine, v, v0, vj, res);
+        let v = s.first + i;
+        let ctx = context(s, v, res);
         let mut d = [0i64; 3];
         for c in 0..3 {
             let k = class(&ctx, c, &d);
@@ -312,34 +273,278 @@ fn decode_level(
     phases.len()
 }
 
-/// A cost estimate of a level's details (bits of an Elias-gamma code), for the choice of
-/// predictor.
-fn cost(details: &[[i64; 3]]) -> u64 {
-    details
+/// Bytes of a level coded on its own (the encoder's choice of predictor).
+fn level_cost(s: Span, details: &[[i64; 3]], phases: &[[u8; 3]], res: &[[i64; 3]]) -> usize {
+    let mut scratch = res.to_vec();
+    let mut e = Encoder::new();
+    encode_level(s, details, phases, &mut scratch, &mut e);
+    e.finish().len()
+}
+
+/// The stencil tables of an interpolating or approximating scheme on `h`'s base, checked
+/// against the hierarchy, and the subdivided base positions.
+fn scheme_tables(h: &Hierarchy, base: &Mesh, scheme: Scheme) -> Result<Refinement> {
+    let o = SubdivideOptions {
+        scheme,
+        levels: h.levels() as u32,
+        ..Default::default()
+    };
+    let r = Refinement::build(base, &o, true)?;
+    let ok = r.stencils.len() == h.levels()
+        && r.stencils.iter().enumerate().all(|(j, t)| {
+            t.num_sources as usize == h.num_vertices(j)
+                && t.len() == h.num_vertices(j + 1)
+                && t.indices.iter().all(|&k| k < t.num_sources)
+        });
+    if !ok {
+        return Err(Error::InvalidArgument(format!(
+            "the {scheme:?} tables do not match the hierarchy"
+        )));
+    }
+    Ok(r)
+}
+
+/// `Σ w · x[k]` over row `r` of `t`.
+#[inline]
+fn apply_int(t: &StencilTable, r: usize, x: &[[i64; 3]]) -> [f64; 3] {
+    let (a, b) = (t.offsets[r] as usize, t.offsets[r + 1] as usize);
+    let mut acc = [0.0f64; 3];
+    for (&k, &w) in t.indices[a..b].iter().zip(&t.weights[a..b]) {
+        let y = x[k as usize];
+        for q in 0..3 {
+            acc[q] += w * y[q] as f64;
+        }
+    }
+    acc
+}
+
+/// `Σ w · x[k]` over row `r` of `t`, for reals.
+#[inline]
+fn apply_f(t: &StencilTable, r: usize, x: &[DVec3]) -> [f64; 3] {
+    let (a, b) = (t.offsets[r] as usize, t.offsets[r + 1] as usize);
+    let mut acc = [0.0f64; 3];
+    for (&k, &w) in t.indices[a..b].iter().zip(&t.weights[a..b]) {
+        let y = x[k as usize];
+        for q in 0..3 {
+            acc[q] += w * y[q];
+        }
+    }
+    acc
+}
+
+/// The predictors of a triangle hierarchy.
+struct TriPredictors {
+    mid: Vec<StencilTable>,
+    bfly: Vec<StencilTable>,
+    /// The reference surface at the finest level, in grid units (reference streams).
+    reference: Option<Vec<DVec3>>,
+}
+
+impl TriPredictors {
+    fn new(h: &Hierarchy, base: &Mesh) -> Result<Self> {
+        Ok(TriPredictors {
+            mid: scheme_tables(h, base, Scheme::Midpoint)?.stencils,
+            bfly: scheme_tables(h, base, Scheme::Butterfly)?.stencils,
+            reference: None,
+        })
+    }
+
+    fn modes(&self) -> &'static [u8] {
+        if self.reference.is_some() {
+            &[
+                MODE_MIDPOINT,
+                MODE_BUTTERFLY,
+                MODE_HALF,
+                MODE_REF,
+                MODE_REF_MIDPOINT,
+                MODE_REF_BUTTERFLY,
+            ]
+        } else {
+            &[MODE_MIDPOINT, MODE_BUTTERFLY, MODE_HALF]
+        }
+    }
+
+    /// Rounded predictions and phases of level `j`'s odd vertices (`V_j..V_{j+1}`) from the
+    /// exact values `even` of the level-`j` vertices. `mode` must be one of
+    /// [`TriPredictors::modes`].
+    fn predict(&self, mode: u8, j: usize, even: &[[i64; 3]]) -> Vec<([i64; 3], [u8; 3])> {
+        let (mid, bfly) = (&self.mid[j], &self.bfly[j]);
+        let vj = even.len();
+        let empty = Vec::new();
+        let reference = self.reference.as_ref().unwrap_or(&empty);
+        (vj..mid.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|v| {
+                let p = match mode {
+                    MODE_MIDPOINT => apply_int(mid, v, even),
+                    MODE_BUTTERFLY => apply_int(bfly, v, even),
+                    MODE_HALF => {
+                        let (a, b) = (apply_int(mid, v, even), apply_int(bfly, v, even));
+                        [0, 1, 2].map(|c| 0.5 * (a[c] + b[c]))
+                    }
+                    _ => {
+                        let r = reference.get(v).copied().unwrap_or_default();
+                        let t = match mode {
+                            MODE_REF_MIDPOINT => Some(mid),
+                            MODE_REF_BUTTERFLY => Some(bfly),
+                            _ => None,
+                        };
+                        match t {
+                            None => r.to_array(),
+                            Some(t) => {
+                                let a = apply_int(t, v, even);
+                                let b = apply_f(t, v, &reference[..vj.min(reference.len())]);
+                                [0, 1, 2].map(|c| r[c] + (a[c] - b[c]))
+                            }
+                        }
+                    }
+                };
+                let (x, y, z) = (round_phase(p[0]), round_phase(p[1]), round_phase(p[2]));
+                ([x.0, y.0, z.0], [x.1, y.1, z.1])
+            })
+            .collect()
+    }
+
+    /// Rounded reference and phases of the base vertices (reference streams).
+    fn predict_base(&self, v0: usize) -> Vec<([i64; 3], [u8; 3])> {
+        let r = self.reference.as_deref().unwrap_or(&[]);
+        r[..v0.min(r.len())]
+            .iter()
+            .map(|p| {
+                let (x, y, z) = (round_phase(p.x), round_phase(p.y), round_phase(p.z));
+                ([x.0, y.0, z.0], [x.1, y.1, z.1])
+            })
+            .collect()
+    }
+}
+
+/// The reference surface of control points `x0` (integers in units of `2^-k` grid steps):
+/// `L` levels of Loop subdivision on `base`'s faces, in grid units. Deterministic: the same
+/// function runs in the encoder and the decoder.
+fn reference_surface(h: &Hierarchy, base: &Mesh, x0: &[[i64; 3]], k: u8) -> Result<Vec<DVec3>> {
+    let mut m = base.clone();
+    m.positions = x0
         .iter()
-        .flat_map(|d| d.iter())
-        .map(|&x| 2 * bitlen(x.unsigned_abs()) as u64 + 1)
-        .sum()
+        .map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+        .collect();
+    let r = scheme_tables(h, &m, Scheme::Loop)?;
+    let s = 1.0 / (1u64 << k) as f64;
+    Ok(r.positions.iter().map(|p| *p * s).collect())
+}
+
+/// Least-squares control points of a Loop surface through the finest positions `y` (grid
+/// units): `argmin ‖S_{L−1} ⋯ S_0 x − y‖²` by conjugate gradients on the normal equations
+/// (CGLS), per component, from the base samples.
+fn loop_fit(tables: &[StencilTable], y: &[DVec3], v0: usize) -> Vec<DVec3> {
+    let apply = |x: &[DVec3]| -> Vec<DVec3> {
+        let mut cur = x.to_vec();
+        for t in tables {
+            cur = (0..t.len())
+                .into_par_iter()
+                .with_min_len(4096)
+                .map(|r| DVec3::from_array(apply_f(t, r, &cur)))
+                .collect();
+        }
+        cur
+    };
+    let apply_t = |z: &[DVec3]| -> Vec<DVec3> {
+        let mut cur = z.to_vec();
+        for t in tables.iter().rev() {
+            let mut out = vec![DVec3::ZERO; t.num_sources as usize];
+            for (r, &zr) in cur.iter().enumerate().take(t.len()) {
+                let (a, b) = (t.offsets[r] as usize, t.offsets[r + 1] as usize);
+                for (&k, &w) in t.indices[a..b].iter().zip(&t.weights[a..b]) {
+                    out[k as usize] += w * zr;
+                }
+            }
+            cur = out;
+        }
+        cur
+    };
+    let dot = |a: &[DVec3], b: &[DVec3]| -> DVec3 { a.iter().zip(b).map(|(x, y)| *x * *y).sum() };
+    let mut x = y[..v0].to_vec();
+    let ax = apply(&x);
+    let mut r: Vec<DVec3> = y.iter().zip(&ax).map(|(a, b)| *a - *b).collect();
+    let mut s = apply_t(&r);
+    let mut p = s.clone();
+    let mut gamma = dot(&s, &s);
+    let tol = gamma * 1e-20;
+    for _ in 0..400 {
+        if gamma.cmple(tol).all() {
+            break;
+        }
+        let q = apply(&p);
+        let qq = dot(&q, &q);
+        let alpha = DVec3::select(qq.cmpgt(DVec3::ZERO), gamma / qq, DVec3::ZERO);
+        for (xi, pi) in x.iter_mut().zip(&p) {
+            *xi += alpha * *pi;
+        }
+        for (ri, qi) in r.iter_mut().zip(&q) {
+            *ri -= alpha * *qi;
+        }
+        s = apply_t(&r);
+        let g2 = dot(&s, &s);
+        let beta = DVec3::select(gamma.cmpgt(DVec3::ZERO), g2 / gamma, DVec3::ZERO);
+        for (pi, si) in p.iter_mut().zip(&s) {
+            *pi = *si + beta * *pi;
+        }
+        gamma = g2;
+    }
+    x
 }
 
 /// What [`encode`] produces.
 pub(crate) struct Encoded {
-    /// The base chunk (a [`basemesh`] integer stream).
+    /// The base chunk.
     pub base: Vec<u8>,
     /// One chunk per level.
     pub levels: Vec<Vec<u8>>,
     /// The hierarchy in the stream's order (base renumbered by the base-mesh coder).
     pub hierarchy: Hierarchy,
-    /// Bit length − 1 of the largest detail per component (−1: all zero), for the header.
+    /// Bit length − 1 of the largest residual per component (−1: all zero), for the header.
     pub top: [i32; 3],
+    /// Whether the stream has a reference surface (flag of the header).
+    pub reference: bool,
 }
 
-/// Encodes hierarchy `h` (already re-indexed to the base coder's order, `reindexed`) on
-/// `grid`. `plain` is the base coder's vertex map of `h.base` (decoded vertex `i` is base
-/// vertex `vertex_map[i]` of the original hierarchy), `original_base` that base's faces.
+/// The base integers in the original base order, coded by the base-mesh coder (whose order,
+/// from the faces only, is the re-indexed one).
+fn base_chunk(original_base: &Mesh, vertex_map: &[u32], q: &[[i64; 3]]) -> Result<Vec<u8>> {
+    let mut q_orig = vec![[0i64; 3]; q.len()];
+    for (i, &v) in vertex_map.iter().enumerate() {
+        q_orig[v as usize] = q[i];
+    }
+    let enc = basemesh::encode_integers(original_base, &q_orig)?;
+    if enc.vertex_map != vertex_map {
+        return Err(Error::InvalidArgument(
+            "the base-mesh coder's order changed between two runs".into(),
+        ));
+    }
+    Ok(enc.bytes)
+}
+
+fn update_top(top: &mut [i32; 3], d: &[[i64; 3]]) -> Result<()> {
+    for d in d {
+        for c in 0..3 {
+            if d[c].unsigned_abs() >= 1 << 31 {
+                return Err(Error::InvalidArgument(
+                    "an integer residual exceeds 2^31; use fewer bits".into(),
+                ));
+            }
+            top[c] = top[c].max(bitlen(d[c].unsigned_abs()) as i32 - 1);
+        }
+    }
+    Ok(())
+}
+
+/// Encodes hierarchy `reindexed` (already in the base coder's order; `vertex_map` maps its
+/// base vertices to `original_base`'s, whose faces the base coder traverses) on `grid`.
+/// Triangle hierarchies try the plain interpolating stream and reference streams and keep
+/// the smallest.
 ///
 /// # Errors
-/// [`Error::InvalidArgument`] if a quantized coordinate exceeds [`MAX_COORD`] or a detail
+/// [`Error::InvalidArgument`] if a quantized coordinate exceeds [`MAX_COORD`] or a residual
 /// `2^31`; errors of the transforms and of [`basemesh::encode_integers`].
 pub(crate) fn encode(
     reindexed: Hierarchy,
@@ -347,96 +552,177 @@ pub(crate) fn encode(
     vertex_map: &[u32],
     grid: &Grid,
     degree: Degree,
-    lifted: bool,
 ) -> Result<Encoded> {
     let nh = reindexed;
-    let l = nh.levels();
-    let v0 = nh.num_vertices(0);
-    let mut data: Vec<[i64; 3]> = nh
+    let q: Vec<[i64; 3]> = nh
         .positions
         .iter()
         .map(|&p| grid.quantize(p).map(i64::from))
         .collect();
-    if let Some(i) = data
-        .iter()
-        .position(|x| x.iter().any(|c| c.abs() > MAX_COORD))
-    {
+    if let Some(i) = q.iter().position(|x| x.iter().any(|c| c.abs() > MAX_COORD)) {
         return Err(Error::InvalidArgument(format!(
             "vertex {i}: quantized coordinate beyond ±2^40"
         )));
     }
-    let mut t = Transform::new(&nh, degree, lifted);
-    let mut preds = vec![0u8; l];
-    let mut phases: Vec<Vec<[u8; 3]>> = vec![Vec::new(); l];
-    for j in (0..l).rev() {
-        let (vj, n) = (nh.num_vertices(j), nh.num_vertices(j + 1));
-        let mut best: Option<(u64, u8, Vec<[i64; 3]>)> = None;
-        for &p in t.candidates() {
-            let mut tmp = data[..n].to_vec();
-            t.forward_level(p, j, &mut tmp)?;
-            let c = cost(&tmp[vj..]);
-            if best.as_ref().is_none_or(|b| c < b.0) {
-                best = Some((c, p, tmp));
-            }
-        }
-        let Some((_, p, tmp)) = best else {
-            return Err(Error::InvalidArgument("no predictor".into()));
-        };
-        // Phases from the even values before this level's analysis (unlifted: unchanged).
-        phases[j] = t.phases(p, j, &data[..vj], n - vj)?;
-        data[..n].copy_from_slice(&tmp);
-        preds[j] = p;
-    }
-    let mut top = [-1i32; 3];
-    for d in &data[v0..] {
-        for c in 0..3 {
-            if d[c].unsigned_abs() >= 1 << 31 {
-                return Err(Error::InvalidArgument(
-                    "an integer detail exceeds 2^31; use fewer bits".into(),
-                ));
-            }
-            top[c] = top[c].max(bitlen(d[c].unsigned_abs()) as i32 - 1);
-        }
-    }
-    // Base chunk: the base integers in the original base order, coded by the base-mesh
-    // coder, whose order (faces only) is the re-indexed one.
-    let mut q_orig = vec![[0i64; 3]; v0];
-    for (i, &v) in vertex_map.iter().enumerate() {
-        q_orig[v as usize] = data[i];
-    }
     let mut base_mesh = original_base.clone();
     base_mesh.edge_tags.clear();
     base_mesh.vertex_tags.clear();
-    let enc = basemesh::encode_integers(&base_mesh, &q_orig)?;
-    if enc.vertex_map != vertex_map {
-        return Err(Error::InvalidArgument(
-            "the base-mesh coder's order changed between two runs".into(),
-        ));
+    if nh.split != Split::Triangles {
+        let (base, levels, top) = encode_quad(&nh, &base_mesh, vertex_map, q, degree)?;
+        return Ok(Encoded {
+            base,
+            levels,
+            hierarchy: nh,
+            top,
+            reference: false,
+        });
     }
+    let mut new_base = nh.base.clone();
+    new_base.edge_tags.clear();
+    new_base.vertex_tags.clear();
+    let mut pred = TriPredictors::new(&nh, &new_base)?;
+    let mut best = encode_tri(&nh, &base_mesh, vertex_map, &q, &pred, None)?;
+    // Reference streams: control points of the least-squares Loop surface.
+    if let Ok(lp) = scheme_tables(&nh, &new_base, Scheme::Loop) {
+        let y: Vec<DVec3> = nh
+            .positions
+            .iter()
+            .map(|&p| (p - grid.origin) / grid.step)
+            .collect();
+        let x0 = loop_fit(&lp.stencils, &y, nh.num_vertices(0));
+        for k in REFERENCE_BITS {
+            let s = (1u64 << k) as f64;
+            let xi: Vec<[i64; 3]> = x0
+                .iter()
+                .map(|p| {
+                    let m = (*p * s).round();
+                    [m.x, m.y, m.z].map(|c| c.clamp(-(MAX_COORD as f64), MAX_COORD as f64) as i64)
+                })
+                .collect();
+            pred.reference = Some(reference_surface(&nh, &new_base, &xi, k)?);
+            let r = encode_tri(&nh, &base_mesh, vertex_map, &q, &pred, Some((k, &xi)))?;
+            let size = |e: &(Vec<u8>, Vec<Vec<u8>>, [i32; 3], bool)| {
+                e.0.len() + e.1.iter().map(Vec::len).sum::<usize>()
+            };
+            if size(&r) < size(&best) {
+                best = r;
+            }
+        }
+    }
+    let (base, levels, top, reference) = best;
+    Ok(Encoded {
+        base,
+        levels,
+        hierarchy: nh,
+        top,
+        reference,
+    })
+}
+
+/// A triangle stream: plain (base = the finest positions of the base vertices) or with a
+/// reference surface (`reference`: extra bits `k` and the control points; base chunk =
+/// `k` then the control points; level 0 starts with the base vertices' residuals).
+#[allow(clippy::type_complexity)]
+fn encode_tri(
+    nh: &Hierarchy,
+    base_mesh: &Mesh,
+    vertex_map: &[u32],
+    q: &[[i64; 3]],
+    pred: &TriPredictors,
+    reference: Option<(u8, &[[i64; 3]])>,
+) -> Result<(Vec<u8>, Vec<Vec<u8>>, [i32; 3], bool)> {
+    let l = nh.levels();
+    let v0 = nh.num_vertices(0);
+    let mut top = [-1i32; 3];
+    let mut res = vec![[0i64; 3]; q.len()];
+    let mut levels = Vec::with_capacity(l);
+    let base = match reference {
+        None => base_chunk(base_mesh, vertex_map, &q[..v0])?,
+        Some((k, x0)) => {
+            let mut b = vec![k];
+            b.extend_from_slice(&base_chunk(base_mesh, vertex_map, x0)?);
+            b
+        }
+    };
+    let first_coded = if reference.is_some() { 0 } else { v0 };
+    for j in 0..l {
+        let (vj, n) = (nh.num_vertices(j), nh.num_vertices(j + 1));
+        let mut e = Encoder::new();
+        if j == 0 && reference.is_some() {
+            let p = pred.predict_base(v0);
+            let d: Vec<[i64; 3]> = (0..v0)
+                .map(|v| [0, 1, 2].map(|c| q[v][c] - p[v].0[c]))
+                .collect();
+            let ph: Vec<[u8; 3]> = p.iter().map(|x| x.1).collect();
+            update_top(&mut top, &d)?;
+            let s = Span {
+                topo: nh.topology(0),
+                first_coded: 0,
+                first: 0,
+            };
+            encode_level(s, &d, &ph, &mut res, &mut e);
+        }
+        let span = Span {
+            topo: nh.topology(j + 1),
+            first_coded,
+            first: vj,
+        };
+        let mut best: Option<(usize, u8, Vec<[i64; 3]>, Vec<[u8; 3]>)> = None;
+        for &m in pred.modes() {
+            let p = pred.predict(m, j, &q[..vj]);
+            let d: Vec<[i64; 3]> = (vj..n)
+                .map(|v| [0, 1, 2].map(|c| q[v][c] - p[v - vj].0[c]))
+                .collect();
+            let ph: Vec<[u8; 3]> = p.iter().map(|x| x.1).collect();
+            let c = level_cost(span, &d, &ph, &res);
+            if best.as_ref().is_none_or(|b| c < b.0) {
+                best = Some((c, m, d, ph));
+            }
+        }
+        let Some((_, m, d, ph)) = best else {
+            return Err(Error::InvalidArgument("no predictor".into()));
+        };
+        update_top(&mut top, &d)?;
+        encode_level(span, &d, &ph, &mut res, &mut e);
+        let mut chunk = vec![m];
+        chunk.extend_from_slice(&e.finish());
+        levels.push(chunk);
+    }
+    Ok((base, levels, top, reference.is_some()))
+}
+
+/// A quad stream: Bertram's integer lifting, then the details level by level.
+#[allow(clippy::type_complexity)]
+fn encode_quad(
+    nh: &Hierarchy,
+    base_mesh: &Mesh,
+    vertex_map: &[u32],
+    mut data: Vec<[i64; 3]>,
+    degree: Degree,
+) -> Result<(Vec<u8>, Vec<Vec<u8>>, [i32; 3])> {
+    let l = nh.levels();
+    let v0 = nh.num_vertices(0);
+    let w = BSplineWavelet::new(degree);
+    w.analyze_int(&nh.topologies[..l], &mut data)?;
+    let mut top = [-1i32; 3];
+    update_top(&mut top, &data[v0..])?;
+    let base = base_chunk(base_mesh, vertex_map, &data[..v0])?;
     let mut res = vec![[0i64; 3]; data.len()];
     let mut levels = Vec::with_capacity(l);
     for j in 0..l {
         let (vj, n) = (nh.num_vertices(j), nh.num_vertices(j + 1));
+        let span = Span {
+            topo: nh.topology(j + 1),
+            first_coded: v0,
+            first: vj,
+        };
         let mut e = Encoder::new();
-        encode_level(
-            nh.topology(j + 1),
-            v0,
-            vj,
-            &data[vj..n],
-            &phases[j],
-            &mut res,
-            &mut e,
-        );
-        let mut chunk = vec![preds[j]];
+        encode_level(span, &data[vj..n], &vec![[0; 3]; n - vj], &mut res, &mut e);
+        let mut chunk = vec![0u8];
         chunk.extend_from_slice(&e.finish());
         levels.push(chunk);
     }
-    Ok(Encoded {
-        base: enc.bytes,
-        levels,
-        hierarchy: nh,
-        top,
-    })
+    Ok((base, levels, top))
 }
 
 /// What [`decode`] returns.
@@ -458,8 +744,37 @@ fn derr(offset: usize, message: impl Into<String>) -> Error {
     }
 }
 
+/// The level chunk `j` of a stream (index `j + 1`): its bytes (possibly a prefix, possibly
+/// empty) and whether it is whole.
+fn level_chunk<'a>(c: &Container, bytes: &'a [u8], j: usize) -> Result<(&'a [u8], bool, usize)> {
+    let i = j + 1;
+    let e: &ChunkEntry = c
+        .chunks
+        .get(i)
+        .ok_or_else(|| derr(c.header_len, format!("level {j} has no chunk")))?;
+    if e.kind != ChunkKind::Level || e.id as usize != j {
+        return Err(derr(
+            c.header_len,
+            format!("{} is not level {j}", e.name(i)),
+        ));
+    }
+    let (chunk, whole) = c.chunk(bytes, i)?;
+    Ok((chunk, whole, e.offset as usize))
+}
+
+fn check_coords(data: &[[i64; 3]], what: &str) -> Result<()> {
+    if data.iter().any(|x| x.iter().any(|c| c.abs() > MAX_COORD)) {
+        return Err(derr(
+            0,
+            format!("{what} decodes to coordinates beyond ±2^40 (corrupt stream)"),
+        ));
+    }
+    Ok(())
+}
+
 /// Decodes the chunks of a lossless stream whose header and index `c` are validated
-/// (`bytes` may be a prefix): the base, then the level chunks in order.
+/// (`bytes` may be a prefix): the base, then the level chunks in order. `reference`: the
+/// stream has a reference surface (triangles).
 ///
 /// # Errors
 /// [`Error::Decode`] for a base chunk that is incomplete, corrupt or does not match the
@@ -469,7 +784,7 @@ pub(crate) fn decode(
     c: &Container,
     split: Split,
     degree: Degree,
-    lifted: bool,
+    reference: bool,
     bytes: &[u8],
 ) -> Result<DecodedLevels> {
     let h = &c.header;
@@ -485,8 +800,17 @@ pub(crate) fn decode(
             ),
         ));
     }
-    let (mut base, base_q) = basemesh::decode_integers(data0)
-        .map_err(|e| derr(off, format!("{}: {e}", entry0.name(0))))?;
+    let name0 = entry0.name(0);
+    let (k, data0) = if reference {
+        match data0.split_first() {
+            Some((&k, rest)) if k <= MAX_REFERENCE_BITS && split == Split::Triangles => (k, rest),
+            _ => return Err(derr(off, format!("{name0}: bad reference precision"))),
+        }
+    } else {
+        (0, data0)
+    };
+    let (mut base, base_q) =
+        basemesh::decode_integers(data0).map_err(|e| derr(off, format!("{name0}: {e}")))?;
     if base.num_vertices() != h.base_vertices as usize
         || base.num_faces() != h.base_faces as usize
         || base.face_indices.len() != h.base_corners as usize
@@ -496,73 +820,125 @@ pub(crate) fn decode(
             "the base mesh chunk does not match the header's base counts",
         ));
     }
-    if base_q.iter().any(|x| x.iter().any(|c| c.abs() > MAX_COORD)) {
-        return Err(derr(off, "base mesh chunk: coordinates beyond ±2^40"));
-    }
+    check_coords(&base_q, "the base mesh chunk")?;
     base.edge_tags.clear();
     base.vertex_tags.clear();
     let hier = Hierarchy::new(&base, h.levels as u32, split, None)
-        .map_err(|e| derr(off, format!("base mesh chunk: {e}")))?;
+        .map_err(|e| derr(off, format!("{name0}: {e}")))?;
     let l = hier.levels();
     let v0 = hier.num_vertices(0);
     let nfine = hier.num_vertices(l);
     let mut data = vec![[0i64; 3]; nfine];
-    data[..v0].copy_from_slice(&base_q);
     let mut res = vec![[0i64; 3]; nfine];
-    let mut t = Transform::new(&hier, degree, lifted);
-    let mut used = off + data0.len();
+    let mut used = off + entry0.len as usize;
     let mut levels_complete = 0u32;
     let mut decoding = true;
-    for j in 0..l {
-        let (vj, n) = (hier.num_vertices(j), hier.num_vertices(j + 1));
-        let i = j + 1;
-        let mut pred = 0u8;
-        if decoding {
-            let e: &ChunkEntry = c
-                .chunks
-                .get(i)
-                .ok_or_else(|| derr(c.header_len, format!("level {j} has no chunk")))?;
-            if e.kind != ChunkKind::Level || e.id as usize != j {
-                return Err(derr(
-                    c.header_len,
-                    format!("{} is not level {j}", e.name(i)),
-                ));
+    if split == Split::Triangles {
+        let mut pred = TriPredictors::new(&hier, &base).map_err(|e| derr(off, e.to_string()))?;
+        if reference {
+            pred.reference = Some(
+                reference_surface(&hier, &base, &base_q, k)
+                    .map_err(|e| derr(off, e.to_string()))?,
+            );
+            let p = pred.predict_base(v0);
+            for v in 0..v0 {
+                data[v] = p[v].0;
             }
-            let (chunk, whole) = c.chunk(bytes, i)?;
-            if let Some((&p, rest)) = chunk.split_first() {
-                if !t.candidates().contains(&p) {
-                    return Err(derr(
-                        e.offset as usize,
-                        format!("{}: unknown predictor {p}", e.name(i)),
-                    ));
+        } else {
+            data[..v0].copy_from_slice(&base_q);
+        }
+        let first_coded = if reference { 0 } else { v0 };
+        for j in 0..l {
+            let (vj, n) = (hier.num_vertices(j), hier.num_vertices(j + 1));
+            let mut mode = MODE_MIDPOINT;
+            let mut got = 0;
+            let mut chunk_info = None;
+            if decoding {
+                let (chunk, whole, at) = level_chunk(c, bytes, j)?;
+                match chunk.split_first() {
+                    Some((&m, rest)) if pred.modes().contains(&m) => {
+                        mode = m;
+                        chunk_info = Some((rest, whole, at, chunk.len()));
+                    }
+                    Some((&m, _)) => {
+                        return Err(derr(at, format!("level {j}: unknown predictor {m}")));
+                    }
+                    None => decoding = false,
                 }
-                pred = p;
-                let phases = t.phases(p, j, &data[..vj], n - vj)?;
-                let mut dec = Decoder::new(rest);
-                let got = decode_level(hier.topology(j + 1), v0, vj, &phases, &mut res, &mut dec);
-                data[vj..vj + got].copy_from_slice(&res[vj..vj + got]);
-                used = e.offset as usize + chunk.len();
-                if got == n - vj && whole {
+            }
+            let mut dec_opt =
+                chunk_info.map(|(rest, whole, at, len)| (Decoder::new(rest), whole, at, len));
+            if j == 0 && reference {
+                if let Some((dec, _, _, _)) = dec_opt.as_mut() {
+                    let p = pred.predict_base(v0);
+                    let ph: Vec<[u8; 3]> = p.iter().map(|x| x.1).collect();
+                    let s = Span {
+                        topo: hier.topology(0),
+                        first_coded: 0,
+                        first: 0,
+                    };
+                    let g = decode_level(s, &ph, &mut res, dec);
+                    for v in 0..g {
+                        data[v] = [0, 1, 2].map(|c| p[v].0[c].saturating_add(res[v][c]));
+                    }
+                    check_coords(&data[..v0], "the base residuals")?;
+                    if g < v0 {
+                        dec_opt = None;
+                        decoding = false;
+                    }
+                }
+            }
+            let p = pred.predict(mode, j, &data[..vj]);
+            if let Some((dec, whole, at, len)) = dec_opt.as_mut() {
+                let ph: Vec<[u8; 3]> = p.iter().map(|x| x.1).collect();
+                let s = Span {
+                    topo: hier.topology(j + 1),
+                    first_coded,
+                    first: vj,
+                };
+                got = decode_level(s, &ph, &mut res, dec);
+                used = *at + *len;
+                if got == n - vj && *whole {
                     levels_complete += 1;
                 } else {
                     decoding = false;
                 }
-            } else {
-                decoding = false;
             }
+            for v in vj..n {
+                let r = if v - vj < got { res[v] } else { [0; 3] };
+                data[v] = [0, 1, 2].map(|c| p[v - vj].0[c].saturating_add(r[c]));
+            }
+            check_coords(&data[vj..n], &format!("level {j}"))?;
         }
-        // Without a chunk the level keeps zero details; its predictor is then the first
-        // candidate (the decoded mesh is an approximation anyway).
-        t.inverse_level(pred, j, &mut data[..n])
-            .map_err(|e| derr(0, format!("integer synthesis of level {j}: {e}")))?;
-        if data[..n]
-            .iter()
-            .any(|x| x.iter().any(|c| c.abs() > MAX_COORD))
-        {
-            return Err(derr(
-                0,
-                format!("level {j} decodes to coordinates beyond ±2^40 (corrupt stream)"),
-            ));
+    } else {
+        data[..v0].copy_from_slice(&base_q);
+        let w = BSplineWavelet::new(degree);
+        for j in 0..l {
+            let (vj, n) = (hier.num_vertices(j), hier.num_vertices(j + 1));
+            if decoding {
+                let (chunk, whole, at) = level_chunk(c, bytes, j)?;
+                if let Some((_, rest)) = chunk.split_first() {
+                    let s = Span {
+                        topo: hier.topology(j + 1),
+                        first_coded: v0,
+                        first: vj,
+                    };
+                    let mut dec = Decoder::new(rest);
+                    let got = decode_level(s, &vec![[0; 3]; n - vj], &mut res, &mut dec);
+                    data[vj..vj + got].copy_from_slice(&res[vj..vj + got]);
+                    used = at + chunk.len();
+                    if got == n - vj && whole {
+                        levels_complete += 1;
+                    } else {
+                        decoding = false;
+                    }
+                } else {
+                    decoding = false;
+                }
+            }
+            w.synthesize_level_int(&hier.topologies[j], &mut data[..n])
+                .map_err(|e| derr(0, format!("integer synthesis of level {j}: {e}")))?;
+            check_coords(&data[..n], &format!("level {j}"))?;
         }
     }
     let grid = Grid {

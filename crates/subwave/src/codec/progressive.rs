@@ -309,6 +309,8 @@ const F_CONTEXTS: u8 = 8;
 const F_LOSSLESS: u8 = 16;
 /// The base chunk is a [`super::basemesh`] stream (lossy mode).
 const F_BASEMESH: u8 = 32;
+/// Lossless streams: a Loop reference surface ([`super::lossless`]).
+const F_REFERENCE: u8 = 64;
 
 /// A float wavelet transform of a hierarchy.
 enum Transform<'h> {
@@ -487,7 +489,7 @@ pub fn encode_with_info(h: &Hierarchy, opts: &EncodeOptions) -> Result<(Vec<u8>,
         // Pure interpolating prediction (no update step) codes smaller losslessly: 60.9 vs
         // 78.2 KB (Loop-subdivided spot), 61.3 vs 75.5 KB (butterfly-subdivided rocker arm),
         // 30.3 vs 30.3 KB (remeshed bunny), 12 bits.
-        return encode_lossless(h, opts, false, bb, forest.num_trees);
+        return encode_lossless(h, opts, bb, forest.num_trees);
     }
     let mut base_chunk: Option<Vec<u8>> = None;
     let mut reindexed: Option<Hierarchy> = None;
@@ -645,7 +647,6 @@ pub fn encode_with_info(h: &Hierarchy, opts: &EncodeOptions) -> Result<(Vec<u8>,
 fn encode_lossless(
     h: &Hierarchy,
     opts: &EncodeOptions,
-    lifted: bool,
     bb: [DVec3; 2],
     num_trees: usize,
 ) -> Result<(Vec<u8>, Hierarchy)> {
@@ -663,22 +664,15 @@ fn encode_lossless(
     new_base.vertex_tags.clear();
     let nh = reindex(h, &new_base, &plain.vertex_map)?;
     let grid = Grid::new(bb[0], bb[1], opts.bits);
-    let e = lossless::encode(
-        nh,
-        &coarse,
-        &plain.vertex_map,
-        &grid,
-        opts.wavelet.degree(),
-        lifted,
-    )?;
+    let e = lossless::encode(nh, &coarse, &plain.vertex_map, &grid, opts.wavelet.degree())?;
     let h = e.hierarchy;
     let mut chunks = vec![(ChunkKind::Base, 0u32, e.base, Vec::new())];
     for (j, c) in e.levels.into_iter().enumerate() {
         chunks.push((ChunkKind::Level, j as u32, c, Vec::new()));
     }
     let mut flags = F_LOSSLESS | F_BASEMESH | F_CONTEXTS;
-    if lifted {
-        flags |= F_LIFTED;
+    if e.reference {
+        flags |= F_REFERENCE;
     }
     let header = Header {
         wavelet: opts.wavelet.id(),
@@ -912,7 +906,10 @@ fn parse(bytes: &[u8]) -> Result<Parsed> {
             format!("{} levels (at most {MAX_LEVELS})", h.levels),
         ));
     }
-    if h.flags & !(F_LIFTED | F_LOCAL | F_ALIGNED | F_CONTEXTS | F_LOSSLESS | F_BASEMESH) != 0 {
+    if h.flags
+        & !(F_LIFTED | F_LOCAL | F_ALIGNED | F_CONTEXTS | F_LOSSLESS | F_BASEMESH | F_REFERENCE)
+        != 0
+    {
         return Err(derr(11, format!("unknown flags {:#x}", h.flags)));
     }
     let top = h.top.map(i32::from);
@@ -1132,7 +1129,7 @@ pub fn decode(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
             &p.c,
             p.split,
             p.wavelet.degree(),
-            p.flags & F_LIFTED != 0,
+            p.flags & F_REFERENCE != 0,
             bytes,
         )?;
         return Ok(Decoded {

@@ -195,38 +195,6 @@ impl<'h> IntTriangleWavelet<'h> {
         Ok(())
     }
 
-    /// The phase of each odd vertex's prediction at level `level + 1` from the even values
-    /// `even` (`V_j` entries): per component, `⌊8 t⌋` with `t = P_e + ½ − ⌊P_e + ½⌋` the
-    /// fractional position of the unrounded prediction between the two rounding ties (`t`
-    /// near ½: the prediction is close to an integer; near 0 or 1: close to a tie). A
-    /// lossless coder uses it as a context: it is known to the decoder before the detail.
-    ///
-    /// # Panics
-    /// If `even` does not have `V_j` entries or `level` does not exist.
-    pub fn prediction_phases(&self, level: usize, even: &[[i64; 3]]) -> Vec<[u8; 3]> {
-        assert_eq!(even.len(), self.h.num_vertices(level), "level size");
-        let t = &self.tables[level];
-        let nc = even.len();
-        (nc..t.len())
-            .into_par_iter()
-            .with_min_len(CHUNK)
-            .map(|r| {
-                let (a, b) = (t.offsets[r] as usize, t.offsets[r + 1] as usize);
-                let mut acc = [0.0f64; 3];
-                for (&k, &w) in t.indices[a..b].iter().zip(&t.weights[a..b]) {
-                    let y = even[k as usize];
-                    for q in 0..3 {
-                        acc[q] += w * y[q] as f64;
-                    }
-                }
-                acc.map(|y| {
-                    let f = (y + 0.5) - floor_i64(y + 0.5) as f64;
-                    ((f * 8.0) as u8).min(7)
-                })
-            })
-            .collect()
-    }
-
     /// `odd[e] += sign · ⌊P_e(even) + ½⌋`.
     fn predict(&self, level: usize, even: &[[i64; 3]], odd: &mut [[i64; 3]], sign: i64) {
         let t = &self.tables[level];
