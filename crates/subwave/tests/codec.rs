@@ -636,16 +636,16 @@ fn golden_bytes_of_a_small_lossless_stream() {
     assert_eq!(d.mesh.positions, grid_points(&golden, &hs));
 }
 
-/// A Loop subdivision surface: a bumpy icosphere refined `levels` times by Loop's rules.
-fn loop_surface(levels: u32) -> Hierarchy {
-    use subwave::subdivision::{subdivide, Scheme, SubdivideOptions};
+/// A subdivision surface: a bumpy icosphere refined `levels` times by `scheme`'s rules.
+fn subdivided_surface(scheme: subwave::subdivision::Scheme, levels: u32) -> Hierarchy {
+    use subwave::subdivision::{subdivide, SubdivideOptions};
     let mut base = generate::icosphere(1);
     for p in &mut base.positions {
         let d = p.normalize();
         *p = d * (1.0 + 0.15 * (4.0 * d.x).sin() * (3.0 * d.y).cos());
     }
     let opts = SubdivideOptions {
-        scheme: Scheme::Loop,
+        scheme,
         levels,
         ..Default::default()
     };
@@ -654,19 +654,28 @@ fn loop_surface(levels: u32) -> Hierarchy {
 }
 
 #[test]
-fn lossless_loop_surfaces_use_a_reference_surface() {
-    let h = loop_surface(3);
+fn lossless_subdivision_surfaces_use_a_reference_surface() {
+    use subwave::subdivision::Scheme;
+    for (scheme, id) in [(Scheme::Loop, 0u8), (Scheme::Butterfly, 1)] {
+        check_reference_stream(&subdivided_surface(scheme, 3), id);
+    }
+}
+
+fn check_reference_stream(h: &Hierarchy, scheme_id: u8) {
     let opts = EncodeOptions {
         lossless: true,
         bits: 14,
         ..Default::default()
     };
-    let (s, hs) = encode_with_info(&h, &opts).unwrap();
+    let (s, hs) = encode_with_info(h, &opts).unwrap();
     let info = inspect(&s).unwrap();
-    // A reference stream: the base chunk starts with the control points' extra bits (a
-    // plain stream's base chunk starts with the base-mesh magic "SWBM").
+    // A reference stream: the base chunk starts with the tag `k | scheme << 4` (a plain
+    // stream's base chunk starts with the base-mesh magic "SWBM").
     let b = s[info.chunks[0].offset as usize];
-    assert!(b == 2 || b == 4, "base chunk starts with {b}");
+    assert!(
+        b >> 4 == scheme_id && [2, 4, 6].contains(&(b & 15)),
+        "base chunk starts with {b}"
+    );
     let want = grid_points(&s, &hs);
     let d = full(&s);
     assert!(d.complete);
