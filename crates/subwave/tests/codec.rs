@@ -708,3 +708,30 @@ fn check_reference_stream(h: &Hierarchy, scheme_id: u8) {
         }
     }
 }
+
+#[test]
+fn lossless_open_meshes_and_base_only_hierarchies_are_exact() {
+    // An open patch (boundary rules in every predictor and reference scheme).
+    let base = generate::triangle_grid(4);
+    let h0 = Hierarchy::new(&base, 3, Split::Triangles, None).unwrap();
+    let positions: Vec<DVec3> = h0
+        .positions
+        .iter()
+        .map(|p| DVec3::new(p.x, p.y, 0.1 * (3.0 * p.x).sin() * (2.0 * p.y).cos()))
+        .collect();
+    let open = Hierarchy::new(&base, 3, Split::Triangles, Some(positions)).unwrap();
+    // No levels at all: the stream is the base chunk.
+    let flat = Hierarchy::new(&generate::icosahedron(), 0, Split::Triangles, None).unwrap();
+    for h in [open, flat] {
+        let opts = EncodeOptions {
+            lossless: true,
+            bits: 12,
+            ..Default::default()
+        };
+        let (s, hs) = encode_with_info(&h, &opts).unwrap();
+        let d = full(&s);
+        assert!(d.complete);
+        assert_eq!(d.mesh.positions, grid_points(&s, &hs));
+        assert_eq!(d.mesh.num_faces(), h.topology(h.levels()).num_faces());
+    }
+}
