@@ -167,13 +167,30 @@ fn a_corrupt_chunk_is_named_and_never_decoded() {
 #[test]
 fn garbage_and_mutations_never_panic() {
     let h = bumpy(2);
-    let s = encode(&h, &EncodeOptions::default()).unwrap();
+    let lossless = EncodeOptions {
+        lossless: true,
+        bits: 12,
+        ..Default::default()
+    };
+    for s in [
+        encode(&h, &EncodeOptions::default()).unwrap(),
+        encode(&h, &lossless).unwrap(),
+    ] {
+        mutate_and_decode(&s);
+    }
+    for len in [0usize, 3, 10, 100] {
+        let g: Vec<u8> = (0..len).map(|i| (i * 37 % 251) as u8).collect();
+        assert!(decode(&g, &DecodeOptions::default()).is_err());
+    }
+}
+
+fn mutate_and_decode(s: &[u8]) {
     let mut x = 99u64;
     for i in 0..2000 {
         x = x
             .wrapping_mul(6364136223846793005)
             .wrapping_add(1442695040888963407);
-        let mut m = s.clone();
+        let mut m = s.to_vec();
         let k = (x >> 33) as usize % m.len();
         m[k] ^= (x >> 13) as u8 | 1;
         if i % 2 == 0 {
@@ -182,10 +199,6 @@ fn garbage_and_mutations_never_panic() {
         } else {
             let _ = decode(&m[..k], &DecodeOptions::default());
         }
-    }
-    for len in [0usize, 3, 10, 100] {
-        let g: Vec<u8> = (0..len).map(|i| (i * 37 % 251) as u8).collect();
-        assert!(decode(&g, &DecodeOptions::default()).is_err());
     }
 }
 
@@ -200,14 +213,15 @@ fn lossless_mode_reproduces_the_quantized_positions() {
             bits: 12,
             ..Default::default()
         };
-        let s = encode(&h, &opts).unwrap();
+        let (s, hs) = encode_with_info(&h, &opts).unwrap();
         let d = full(&s);
         assert!(d.complete);
         // The grid: 2^12 - 1 steps over the longest side of the box.
         let info = inspect(&s).unwrap();
         let [lo, hi] = info.bbox;
         let step = (hi - lo).max_element() / 4095.0;
-        for (a, b) in d.mesh.positions.iter().zip(&h.positions) {
+        assert_eq!(d.mesh.positions.len(), hs.positions.len());
+        for (a, b) in d.mesh.positions.iter().zip(&hs.positions) {
             let q = ((*b - lo) / step).round();
             let want = lo + q * step;
             assert_eq!(*a, want);
@@ -256,7 +270,7 @@ fn quad_hierarchies_round_trip_lossy_and_lossless() {
         .unwrap();
         let d = full(&s);
         assert!(max_err(&d.mesh.positions, &hs.positions) < 1e-4);
-        let s = encode(
+        let (s, hs) = encode_with_info(
             &h,
             &EncodeOptions {
                 wavelet,
@@ -268,7 +282,7 @@ fn quad_hierarchies_round_trip_lossy_and_lossless() {
         .unwrap();
         let d = full(&s);
         let step = 2.0 / 16383.0;
-        assert!(max_err(&d.mesh.positions, &h.positions) <= step);
+        assert!(max_err(&d.mesh.positions, &hs.positions) <= step);
     }
     assert!(encode(&h, &EncodeOptions::default()).is_err()); // butterfly on quads
 }
@@ -410,5 +424,314 @@ fn open_meshes_round_trip() {
             .fold(0.0, f64::max);
         assert!(e < 1e-3, "{layout:?}: {e}");
         assert_eq!(d.mesh.num_faces(), h.topology(3).num_faces());
+    }
+}
+
+/// The quantized positions of `h` on a lossless stream's grid.
+fn grid_points(s: &[u8], h: &Hierarchy) -> Vec<DVec3> {
+    let info = inspect(s).unwrap();
+    let [lo, hi] = info.bbox;
+    let step = (hi - lo).max_element() / ((1u64 << info.bits) - 1) as f64;
+    h.positions
+        .iter()
+        .map(|p| lo + ((*p - lo) / step).round() * step)
+        .collect()
+}
+
+#[test]
+fn lossless_levels_decode_to_exact_coarse_meshes() {
+    let h = bumpy(4);
+    let opts = EncodeOptions {
+        lossless: true,
+        bits: 14,
+        ..Default::default()
+    };
+    let (s, hs) = encode_with_info(&h, &opts).unwrap();
+    let want = grid_points(&s, &hs);
+    let info = inspect(&s).unwrap();
+    assert!(info.lossless);
+    assert_eq!(info.chunks.len(), 1 + 4);
+    let d = full(&s);
+    assert!(d.complete && d.planes_complete == 4 && d.bytes_used == s.len());
+    assert_eq!(d.mesh.positions, want);
+    // The prefix ending with level j's chunk holds levels 0..=j exactly: the vertices of
+    // level j + 1 are the finest mesh's positions there; the finer ones are subdivided.
+    let mut errors = Vec::new();
+    for (j, c) in info.chunks.iter().enumerate().skip(1) {
+        let end = c.offset as usize + c.len as usize;
+        let d = decode(
+            &s,
+            &DecodeOptions {
+                max_bytes: Some(end),
+                trees: None,
+            },
+        )
+        .unwrap();
+        assert_eq!(d.planes_complete as usize, j);
+        let n = hs.num_vertices(j);
+        assert_eq!(d.mesh.positions[..n], want[..n], "level {j}");
+        errors.push(rms(&d.mesh.positions, &want));
+        // A cut inside the chunk decodes (a part of the level).
+        let mid = decode(
+            &s,
+            &DecodeOptions {
+                max_bytes: Some(end - c.len as usize / 2),
+                trees: None,
+            },
+        )
+        .unwrap();
+        assert!(!mid.complete && mid.bytes_used <= end);
+    }
+    assert!(errors.windows(2).all(|w| w[1] <= w[0]), "{errors:?}");
+    assert_eq!(*errors.last().unwrap(), 0.0);
+    // Prefixes shorter than the base chunk are errors, never panics.
+    let min = info.header_bytes + info.base_bytes;
+    for cut in (0..min).step_by(7) {
+        let r = decode(
+            &s,
+            &DecodeOptions {
+                max_bytes: Some(cut),
+                trees: None,
+            },
+        );
+        assert!(matches!(r, Err(Error::Decode { .. })), "cut {cut}");
+    }
+}
+
+#[test]
+fn lossless_quad_streams_are_exact() {
+    let base = generate::cube();
+    let h0 = Hierarchy::new(&base, 3, Split::Polygons, None).unwrap();
+    let positions: Vec<DVec3> = h0
+        .positions
+        .iter()
+        .map(|p| p.normalize() * (1.0 + 0.03 * (7.0 * p.x).sin()))
+        .collect();
+    let h = Hierarchy::new(&base, 3, Split::Polygons, Some(positions)).unwrap();
+    for wavelet in [Wavelet::Linear, Wavelet::Cubic, Wavelet::Quintic] {
+        let opts = EncodeOptions {
+            wavelet,
+            lossless: true,
+            bits: 13,
+            ..EncodeOptions::for_hierarchy(&h)
+        };
+        let (s, hs) = encode_with_info(&h, &opts).unwrap();
+        let d = full(&s);
+        assert!(d.complete);
+        assert_eq!(d.mesh.positions, grid_points(&s, &hs), "{wavelet:?}");
+    }
+}
+
+/// Rewrites a stream with chunk `i`'s byte `k` flipped and valid checksums, so that the
+/// decoder itself (not the CRC) meets the corrupt data.
+fn corrupt_behind_crc(s: &[u8], i: usize, k: usize, flip: u8) -> Vec<u8> {
+    use subwave::codec::container;
+    let c = container::read(s).unwrap();
+    let chunks: Vec<_> = c
+        .chunks
+        .iter()
+        .enumerate()
+        .map(|(j, e)| {
+            let mut data = s[e.offset as usize..e.offset as usize + e.len as usize].to_vec();
+            if j == i && !data.is_empty() {
+                let k = k % data.len();
+                data[k] ^= flip;
+            }
+            (e.kind, e.id, data, e.marks.clone())
+        })
+        .collect();
+    container::write(&c.header, &chunks).unwrap()
+}
+
+#[test]
+fn lossless_decoder_is_safe_on_corrupt_chunks_with_valid_checksums() {
+    let tri = encode(
+        &bumpy(3),
+        &EncodeOptions {
+            lossless: true,
+            bits: 16,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let base = generate::cube();
+    let hq = Hierarchy::new(&base, 2, Split::Polygons, None).unwrap();
+    let quad = encode(
+        &hq,
+        &EncodeOptions {
+            lossless: true,
+            bits: 12,
+            ..EncodeOptions::for_hierarchy(&hq)
+        },
+    )
+    .unwrap();
+    let mut x = 7u64;
+    for s in [tri, quad] {
+        let n = inspect(&s).unwrap().chunks.len();
+        for _ in 0..600 {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let i = (x >> 40) as usize % n;
+            let m = corrupt_behind_crc(&s, i, (x >> 20) as usize, (x >> 8) as u8 | 1);
+            // Errors or some mesh; never a panic.
+            if let Ok(d) = decode(&m, &DecodeOptions::default()) {
+                assert!(d.mesh.positions.iter().all(|p| p.is_finite()));
+            }
+            let cut = (x >> 3) as usize % (m.len() + 1);
+            let _ = decode(&m[..cut], &DecodeOptions::default());
+        }
+    }
+}
+
+/// The reference lossless stream: a bumpy sphere, 2 levels, 12 bits.
+fn golden_lossless_stream() -> Vec<u8> {
+    encode(
+        &bumpy(2),
+        &EncodeOptions {
+            lossless: true,
+            bits: 12,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
+const GOLDEN_LOSSLESS: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/tests/golden/bumpy2_lossless.swv"
+);
+
+/// The lossless stream format is pinned like [`golden_bytes_of_a_small_reference_stream`]'s
+/// (regenerate with `SUBWAVE_BLESS=1 cargo test -p subwave --test codec golden`).
+#[test]
+fn golden_bytes_of_a_small_lossless_stream() {
+    let s = golden_lossless_stream();
+    if std::env::var_os("SUBWAVE_BLESS").is_some() {
+        std::fs::write(GOLDEN_LOSSLESS, &s).unwrap();
+    }
+    let golden = std::fs::read(GOLDEN_LOSSLESS).expect("tests/golden/bumpy2_lossless.swv");
+    assert_eq!(
+        u16::from_le_bytes([golden[4], golden[5]]),
+        subwave::codec::container::VERSION,
+        "the golden lossless stream has another version: regenerate it"
+    );
+    assert!(
+        s == golden,
+        "the lossless encoder's output changed ({} bytes, golden {})",
+        s.len(),
+        golden.len()
+    );
+    let d = full(&golden);
+    assert!(d.complete);
+    let (_, hs) = encode_with_info(
+        &bumpy(2),
+        &EncodeOptions {
+            lossless: true,
+            bits: 12,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(d.mesh.positions, grid_points(&golden, &hs));
+}
+
+/// A subdivision surface: a bumpy icosphere refined `levels` times by `scheme`'s rules.
+fn subdivided_surface(scheme: subwave::subdivision::Scheme, levels: u32) -> Hierarchy {
+    use subwave::subdivision::{subdivide, SubdivideOptions};
+    let mut base = generate::icosphere(1);
+    for p in &mut base.positions {
+        let d = p.normalize();
+        *p = d * (1.0 + 0.15 * (4.0 * d.x).sin() * (3.0 * d.y).cos());
+    }
+    let opts = SubdivideOptions {
+        scheme,
+        levels,
+        ..Default::default()
+    };
+    let fine = subdivide(&base, &opts).unwrap();
+    Hierarchy::new(&base, levels, Split::Triangles, Some(fine.positions)).unwrap()
+}
+
+#[test]
+fn lossless_subdivision_surfaces_use_a_reference_surface() {
+    use subwave::subdivision::Scheme;
+    for (scheme, id) in [(Scheme::Loop, 0u8), (Scheme::Butterfly, 1)] {
+        check_reference_stream(&subdivided_surface(scheme, 3), id);
+    }
+}
+
+fn check_reference_stream(h: &Hierarchy, scheme_id: u8) {
+    let opts = EncodeOptions {
+        lossless: true,
+        bits: 14,
+        ..Default::default()
+    };
+    let (s, hs) = encode_with_info(h, &opts).unwrap();
+    let info = inspect(&s).unwrap();
+    // A reference stream: the base chunk starts with the tag `k | scheme << 4` (a plain
+    // stream's base chunk starts with the base-mesh magic "SWBM").
+    let b = s[info.chunks[0].offset as usize];
+    assert!(
+        b >> 4 == scheme_id && [2, 4, 6].contains(&(b & 15)),
+        "base chunk starts with {b}"
+    );
+    let want = grid_points(&s, &hs);
+    let d = full(&s);
+    assert!(d.complete);
+    assert_eq!(d.mesh.positions, want);
+    // Far below a byte per vertex: the residuals are rounding differences.
+    assert!(s.len() < hs.positions.len() / 2, "{} bytes", s.len());
+    // Level prefixes are exact on their levels.
+    for (j, c) in info.chunks.iter().enumerate().skip(1) {
+        let d = decode(
+            &s,
+            &DecodeOptions {
+                max_bytes: Some(c.offset as usize + c.len as usize),
+                trees: None,
+            },
+        )
+        .unwrap();
+        let n = hs.num_vertices(j);
+        assert_eq!(d.mesh.positions[..n], want[..n], "level {j}");
+    }
+    // Corrupt data behind valid checksums never panics.
+    let mut x = 3u64;
+    for _ in 0..300 {
+        x = x
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let i = (x >> 40) as usize % info.chunks.len();
+        let m = corrupt_behind_crc(&s, i, (x >> 20) as usize, (x >> 8) as u8 | 1);
+        if let Ok(d) = decode(&m, &DecodeOptions::default()) {
+            assert!(d.mesh.positions.iter().all(|p| p.is_finite()));
+        }
+    }
+}
+
+#[test]
+fn lossless_open_meshes_and_base_only_hierarchies_are_exact() {
+    // An open patch (boundary rules in every predictor and reference scheme).
+    let base = generate::triangle_grid(4);
+    let h0 = Hierarchy::new(&base, 3, Split::Triangles, None).unwrap();
+    let positions: Vec<DVec3> = h0
+        .positions
+        .iter()
+        .map(|p| DVec3::new(p.x, p.y, 0.1 * (3.0 * p.x).sin() * (2.0 * p.y).cos()))
+        .collect();
+    let open = Hierarchy::new(&base, 3, Split::Triangles, Some(positions)).unwrap();
+    // No levels at all: the stream is the base chunk.
+    let flat = Hierarchy::new(&generate::icosahedron(), 0, Split::Triangles, None).unwrap();
+    for h in [open, flat] {
+        let opts = EncodeOptions {
+            lossless: true,
+            bits: 12,
+            ..Default::default()
+        };
+        let (s, hs) = encode_with_info(&h, &opts).unwrap();
+        let d = full(&s);
+        assert!(d.complete);
+        assert_eq!(d.mesh.positions, grid_points(&s, &hs));
+        assert_eq!(d.mesh.num_faces(), h.topology(h.levels()).num_faces());
     }
 }

@@ -33,7 +33,7 @@ use crate::{Error, Result};
 /// The magic bytes.
 pub const MAGIC: [u8; 4] = *b"SWAV";
 /// The format version (bumped on every format change; the golden-bytes test pins it).
-pub const VERSION: u16 = 4;
+pub const VERSION: u16 = 5;
 /// Bytes of the fixed header fields.
 pub const HEADER_FIELDS: usize = 16 + 8 * 13 + 4 * 4;
 /// Bytes of a chunk index entry without marks.
@@ -48,6 +48,9 @@ pub enum ChunkKind {
     Plane,
     /// All bit planes of one tree (trees layout); `id` is the tree.
     Tree,
+    /// The details of one level (lossless streams); `id` is the level `j` (details of the
+    /// odd vertices of level `j + 1`).
+    Level,
 }
 
 impl ChunkKind {
@@ -56,6 +59,7 @@ impl ChunkKind {
             ChunkKind::Base => 0,
             ChunkKind::Plane => 1,
             ChunkKind::Tree => 2,
+            ChunkKind::Level => 3,
         }
     }
 
@@ -64,6 +68,7 @@ impl ChunkKind {
             0 => Some(ChunkKind::Base),
             1 => Some(ChunkKind::Plane),
             2 => Some(ChunkKind::Tree),
+            3 => Some(ChunkKind::Level),
             _ => None,
         }
     }
@@ -93,6 +98,7 @@ impl ChunkEntry {
             ChunkKind::Base => format!("chunk {index} (base mesh)"),
             ChunkKind::Plane => format!("chunk {index} (bit plane {})", self.id),
             ChunkKind::Tree => format!("chunk {index} (tree {})", self.id),
+            ChunkKind::Level => format!("chunk {index} (level {})", self.id),
         }
     }
 }

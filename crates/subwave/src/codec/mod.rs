@@ -13,12 +13,15 @@
 //! - [`spiht`]: the SPIHT coder of the detail coefficients (Maret Algorithm 1);
 //! - [`container`]: the `.swv` stream format (header, chunk index, checksums);
 //! - [`prepare`]: any input mesh to the hierarchy the codec takes (detection or remeshing);
-//! - [`progressive`]: the encode/decode API of progressive and lossless streams.
+//! - [`progressive`]: the encode/decode API of progressive and lossless streams;
+//! - [`lossless`]: the lossless mode's level-by-level context-modelled coding of integer
+//!   wavelet details.
 
 pub mod basemesh;
 pub mod container;
 pub mod eval;
 pub mod forest;
+pub mod lossless;
 pub mod prepare;
 pub mod progressive;
 pub mod quantize;

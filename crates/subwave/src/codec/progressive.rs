@@ -33,10 +33,14 @@
 //!
 //! # Lossless mode
 //! Positions are quantized on a grid of `2^bits` steps over the longest side of the
-//! bounding box, transformed by an integer-to-integer wavelet (lifted midpoint or butterfly,
-//! [`crate::wavelet::triangle_int`]; Bertram's integer B-spline lifting on quad
-//! hierarchies) and the integer coefficients coded by SPIHT with step 1: the full stream
-//! reproduces the quantized positions bit for bit, and every prefix is a lossy
+//! bounding box and transformed by an integer-to-integer wavelet (unlifted midpoint or
+//! butterfly prediction chosen per level, [`crate::wavelet::triangle_int`]; Bertram's
+//! integer B-spline lifting on quad hierarchies). With the embedded layout the stream is
+//! [`super::lossless`]'s: the base chunk coded by the base-mesh coder's integer API, then
+//! one chunk per level of context-modelled integer details (flags `F_LOSSLESS |
+//! F_BASEMESH`). With the trees layout the integer coefficients are coded by SPIHT with
+//! step 1 per tree (flag `F_LOSSLESS` alone, base by [`encode_base`]). Either way the full
+//! stream reproduces the quantized positions bit for bit, and every prefix is a lossy
 //! approximation.
 //!
 //! # Decoder safety
@@ -51,7 +55,8 @@
 //! (valence-driven connectivity, parallelogram prediction). That coder renumbers vertices
 //! and faces, so the encoder re-indexes the hierarchy onto the decoded base order (odd
 //! vertices matched by their parent edges level by level) and transforms it again there.
-//! Lossless streams need the exact integer base coefficients and code them with the small
+//! Lossless embedded streams code the exact integer base positions with the same coder's
+//! integer API ([`basemesh::encode_integers`]); lossless trees streams with the small
 //! coder [`encode_base`]: per corner one adaptive bit "next new vertex" or the index as an
 //! Elias-gamma integer, then per vertex the coordinate differences to the previous vertex.
 //!
@@ -64,6 +69,7 @@ use glam::DVec3;
 use super::basemesh::{self, BaseMeshOptions};
 use super::container::{self, ChunkKind, Container, Header};
 use super::forest::Forest;
+use super::lossless;
 use super::quantize::{self, ComponentMode, Grid};
 use super::rangecoder::{Bit, Decoder, Encoder, SInt, UInt};
 use super::spiht::{self, Coefficients, Magnitudes, SpihtDecoder, SpihtEncoder, INSIGNIFICANT};
@@ -167,7 +173,8 @@ pub enum Layout {
 pub struct EncodeOptions {
     /// The wavelet (must match the hierarchy: triangle or quad).
     pub wavelet: Wavelet,
-    /// Lifted (update step) midpoint/butterfly; ignored by the other wavelets (default on).
+    /// Lifted (update step) midpoint/butterfly; ignored by the other wavelets and in
+    /// lossless mode (always unlifted there) (default on).
     pub lifted: bool,
     /// Detail coordinates (triangle wavelets; quad wavelets are always global).
     pub frames: DetailFrame,
@@ -302,6 +309,8 @@ const F_CONTEXTS: u8 = 8;
 const F_LOSSLESS: u8 = 16;
 /// The base chunk is a [`super::basemesh`] stream (lossy mode).
 const F_BASEMESH: u8 = 32;
+/// Lossless streams: a Loop reference surface ([`super::lossless`]).
+const F_REFERENCE: u8 = 64;
 
 /// A float wavelet transform of a hierarchy.
 enum Transform<'h> {
@@ -416,8 +425,8 @@ pub fn encode(h: &Hierarchy, opts: &EncodeOptions) -> Result<Vec<u8>> {
 }
 
 /// [`encode`], also returning the hierarchy in the stream's order: the decoder's mesh is its
-/// finest level (with decoded positions). Lossy streams renumber the base mesh (the base-mesh
-/// coder's traversal order), so this is `h` re-indexed; lossless streams keep `h`'s order.
+/// finest level (with decoded positions). Streams renumber the base mesh (the base-mesh
+/// coder's traversal order), so this is `h` re-indexed.
 ///
 /// # Errors
 /// As [`encode`].
@@ -476,6 +485,12 @@ pub fn encode_with_info(h: &Hierarchy, opts: &EncodeOptions) -> Result<(Vec<u8>,
     }
     let v0 = h.num_vertices(0);
     let bb = bbox(&h.positions);
+    if opts.lossless && opts.layout == Layout::Embedded {
+        // Pure interpolating prediction (no update step) codes smaller losslessly: 60.9 vs
+        // 78.2 KB (Loop-subdivided spot), 61.3 vs 75.5 KB (butterfly-subdivided rocker arm),
+        // 30.3 vs 30.3 KB (remeshed bunny), 12 bits.
+        return encode_lossless(h, opts, bb, forest.num_trees);
+    }
     let mut base_chunk: Option<Vec<u8>> = None;
     let mut reindexed: Option<Hierarchy> = None;
     let (grid, base_q, mags, steps) = if opts.lossless {
@@ -623,6 +638,64 @@ pub fn encode_with_info(h: &Hierarchy, opts: &EncodeOptions) -> Result<(Vec<u8>,
         num_trees: forest.num_trees as u32,
     };
     Ok((container::write(&header, &chunks)?, stream_hierarchy))
+}
+
+/// The lossless encoder ([`super::lossless`]): base chunk by the base-mesh coder's integer
+/// API, then one chunk per level.
+fn encode_lossless(
+    h: &Hierarchy,
+    opts: &EncodeOptions,
+    bb: [DVec3; 2],
+    num_trees: usize,
+) -> Result<(Vec<u8>, Hierarchy)> {
+    if opts.wavelet == Wavelet::Loop {
+        return Err(Error::InvalidArgument(
+            "lossless mode needs an integer wavelet: midpoint or butterfly (triangles), linear, cubic or quintic (quads); Loop has no finite integer lifting".into(),
+        ));
+    }
+    let mut coarse = h.base.clone();
+    coarse.edge_tags.clear();
+    coarse.vertex_tags.clear();
+    let plain = basemesh::encode_with_info(&coarse, &BaseMeshOptions::default())?;
+    let mut new_base = plain.decoded.clone();
+    new_base.edge_tags.clear();
+    new_base.vertex_tags.clear();
+    let nh = reindex(h, &new_base, &plain.vertex_map)?;
+    let grid = Grid::new(bb[0], bb[1], opts.bits);
+    let e = lossless::encode(nh, &coarse, &plain.vertex_map, &grid, opts.wavelet.degree())?;
+    let h = e.hierarchy;
+    let mut chunks = vec![(ChunkKind::Base, 0u32, e.base, Vec::new())];
+    for (j, c) in e.levels.into_iter().enumerate() {
+        chunks.push((ChunkKind::Level, j as u32, c, Vec::new()));
+    }
+    let mut flags = F_LOSSLESS | F_BASEMESH | F_CONTEXTS;
+    if e.reference {
+        flags |= F_REFERENCE;
+    }
+    let header = Header {
+        wavelet: opts.wavelet.id(),
+        flags,
+        split: if h.split == Split::Triangles { 0 } else { 1 },
+        layout: 0,
+        levels: h.levels() as u8,
+        bits: opts.bits as u8,
+        base_bits: opts.base_bits as u8,
+        reserved: 0,
+        top: e.top.map(|t| t as i8),
+        reserved2: 0,
+        input_vertices: opts
+            .input_vertices
+            .unwrap_or(h.positions.len().min(u32::MAX as usize) as u32),
+        bbox: bb,
+        steps: [1.0; 3],
+        grid_origin: grid.origin,
+        grid_step: grid.step,
+        base_vertices: h.num_vertices(0) as u32,
+        base_faces: h.base.num_faces() as u32,
+        base_corners: h.base.face_indices.len() as u32,
+        num_trees: num_trees as u32,
+    };
+    Ok((container::write(&header, &chunks)?, h))
 }
 
 /// Hierarchy `h` re-indexed onto `base`, the same base mesh renumbered (new vertex `i` is
@@ -838,7 +911,10 @@ fn parse_within(bytes: &[u8], available: usize) -> Result<Parsed> {
             format!("{} levels (at most {MAX_LEVELS})", h.levels),
         ));
     }
-    if h.flags & !(F_LIFTED | F_LOCAL | F_ALIGNED | F_CONTEXTS | F_LOSSLESS | F_BASEMESH) != 0 {
+    if h.flags
+        & !(F_LIFTED | F_LOCAL | F_ALIGNED | F_CONTEXTS | F_LOSSLESS | F_BASEMESH | F_REFERENCE)
+        != 0
+    {
         return Err(derr(11, format!("unknown flags {:#x}", h.flags)));
     }
     let top = h.top.map(i32::from);
@@ -1052,6 +1128,22 @@ pub fn decode(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
     let limit = opts.max_bytes.map_or(available, |m| m.min(available));
     let bytes = &bytes[..limit];
     let p = parse_within(bytes, available)?;
+    if p.flags & F_LOSSLESS != 0 && p.flags & F_BASEMESH != 0 {
+        let d = lossless::decode(
+            &p.c,
+            p.split,
+            p.wavelet.degree(),
+            p.flags & F_REFERENCE != 0,
+            bytes,
+        )?;
+        return Ok(Decoded {
+            mesh: d.mesh,
+            bytes_used: d.bytes_used,
+            planes_complete: d.levels_complete,
+            planes: p.c.header.levels as u32,
+            complete: d.complete,
+        });
+    }
     let s = setup(&p, bytes)?;
     // The coefficients and the synthesis tables are independent: build them in parallel.
     let (coded, t) = rayon::join(

@@ -181,6 +181,101 @@ pub fn encode_with_info(mesh: &Mesh, opts: &BaseMeshOptions) -> Result<Encoded> 
             opts.position_bits
         )));
     }
+    encode_on_grid(mesh, quantization_of(mesh, opts.position_bits))
+}
+
+/// Largest magnitude of an integer position accepted by [`encode_integers`] (`2^52`, so that
+/// every value and grid offset is exact in `f64`).
+pub const MAX_INTEGER: i64 = 1 << 52;
+
+/// Encodes a mesh whose positions are already integers (`q[v]` for vertex `v`; the mesh's
+/// own positions are ignored), exactly: [`decode_integers`] returns the same integers (in
+/// the decoded vertex order, [`Encoded::vertex_map`]). The integers are coded as grid points
+/// of step 1 from their per-axis minimum, with the same connectivity coder and
+/// parallelogram prediction as [`encode`]; the decoded vertex and face order depends only on
+/// the faces, so it is the order [`encode`] gives for the same faces.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] if `q.len()` is not the vertex count, a value exceeds
+/// [`MAX_INTEGER`] in magnitude or the values span more than `2^30 − 1` on an axis; otherwise
+/// as [`encode`].
+pub fn encode_integers(mesh: &Mesh, q: &[[i64; 3]]) -> Result<Encoded> {
+    if q.len() != mesh.num_vertices() {
+        return Err(Error::InvalidArgument(format!(
+            "{} integer positions for {} vertices",
+            q.len(),
+            mesh.num_vertices()
+        )));
+    }
+    if let Some(v) = q
+        .iter()
+        .position(|p| p.iter().any(|x| x.abs() > MAX_INTEGER))
+    {
+        return Err(Error::InvalidArgument(format!(
+            "vertex {v}: integer position {:?} beyond ±2^52",
+            q[v]
+        )));
+    }
+    let mut lo = [0i64; 3];
+    let mut span = 0i64;
+    for c in 0..3 {
+        let (a, b) = q
+            .iter()
+            .fold((i64::MAX, i64::MIN), |(a, b), p| (a.min(p[c]), b.max(p[c])));
+        if !q.is_empty() {
+            lo[c] = a;
+            span = span.max(b - a);
+        }
+    }
+    let bits = (64 - span.leading_zeros()).max(8);
+    if bits > 30 {
+        return Err(Error::InvalidArgument(format!(
+            "integer positions span {span} on an axis; the base-mesh coder takes at most 2^30 − 1"
+        )));
+    }
+    let quantization = Quantization {
+        bits,
+        min: DVec3::new(lo[0] as f64, lo[1] as f64, lo[2] as f64),
+        side: ((1u64 << bits) - 1) as f64,
+    };
+    let mut m = mesh.clone();
+    m.positions = q
+        .iter()
+        .map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+        .collect();
+    encode_on_grid(&m, quantization)
+}
+
+/// Decodes a stream written by [`encode_integers`]: the mesh (positions are the integers as
+/// `f64`) and the integer positions in decoded vertex order.
+///
+/// # Errors
+/// As [`decode`]; [`Error::Decode`] if the stream's grid is not the unit integer grid of
+/// [`encode_integers`].
+pub fn decode_integers(bytes: &[u8]) -> Result<(Mesh, Vec<[i64; 3]>)> {
+    let (mesh, quantized, qz) = decode_quantized(bytes)?;
+    let lo = [qz.min.x, qz.min.y, qz.min.z];
+    if qz.side != ((1u64 << qz.bits) - 1) as f64
+        || lo
+            .iter()
+            .any(|&x| x.fract() != 0.0 || x.abs() > MAX_INTEGER as f64)
+    {
+        return Err(Error::Decode {
+            offset: 0,
+            message: "not an integer-position base-mesh stream (its grid is not the unit grid)"
+                .into(),
+        });
+    }
+    let lo = lo.map(|x| x as i64);
+    let q = quantized
+        .iter()
+        .map(|p| [0, 1, 2].map(|c| lo[c] + p[c] as i64))
+        .collect();
+    Ok((mesh, q))
+}
+
+/// [`encode_with_info`] on a given grid.
+fn encode_on_grid(mesh: &Mesh, quantization: Quantization) -> Result<Encoded> {
     mesh.check_indices()?;
     if mesh.face_indices.len() >= (1 << 31) {
         return Err(Error::InvalidArgument(
@@ -205,7 +300,6 @@ pub fn encode_with_info(mesh: &Mesh, opts: &BaseMeshOptions) -> Result<Encoded> 
     vertex_map.extend((0..mesh.num_vertices() as u32).filter(|&v| !seen[v as usize]));
 
     // Positions.
-    let quantization = quantization_of(mesh, opts.position_bits);
     // Unreferenced vertices in Morton order of their grid points (ties in input order), so
     // that each is close to the previous one (their predictor).
     vertex_map[nref..]
@@ -220,7 +314,7 @@ pub fn encode_with_info(mesh: &Mesh, opts: &BaseMeshOptions) -> Result<Encoded> 
         nref,
         &conn.face_offsets,
         &conn.face_indices,
-        opts.position_bits,
+        quantization.bits,
         &mut enc,
     );
     let pos_bytes = enc.finish();
@@ -249,7 +343,7 @@ pub fn encode_with_info(mesh: &Mesh, opts: &BaseMeshOptions) -> Result<Encoded> 
 
     // Assemble.
     let header = Header {
-        position_bits: opts.position_bits,
+        position_bits: quantization.bits,
         vertices: mesh.num_vertices() as u64,
         isolated: (mesh.num_vertices() - nref) as u64,
         faces: mesh.num_faces() as u64,

@@ -276,3 +276,38 @@ fn context_thresholds_count_what_the_decoder_knows() {
         check_roundtrip(&m, 12);
     }
 }
+
+#[test]
+fn integer_positions_round_trip_exactly() {
+    let mesh = generate::icosphere(2);
+    let mut s = 7u64;
+    let q: Vec<[i64; 3]> = mesh
+        .positions
+        .iter()
+        .map(|p| {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let noise = ((s >> 40) % 5) as i64 - 2;
+            [p.x, p.y, p.z].map(|x| (x * 3000.0).round() as i64 - 70_000 + noise)
+        })
+        .collect();
+    let e = encode_integers(&mesh, &q).unwrap();
+    let (d, dq) = decode_integers(&e.bytes).unwrap();
+    assert_eq!(d.face_indices, e.decoded.face_indices);
+    for (i, &v) in e.vertex_map.iter().enumerate() {
+        assert_eq!(dq[i], q[v as usize], "vertex {i}");
+    }
+    // The decoded order depends on the faces only.
+    let plain = encode_with_info(&mesh, &BaseMeshOptions::default()).unwrap();
+    assert_eq!(plain.vertex_map, e.vertex_map);
+    // A float stream is not an integer stream; bad inputs are errors.
+    assert!(decode_integers(&plain.bytes).is_err());
+    assert!(encode_integers(&mesh, &q[1..]).is_err());
+    let mut far = q.clone();
+    far[0][0] = 1 << 31;
+    assert!(encode_integers(&mesh, &far).is_err());
+    for cut in [0, 5, e.bytes.len() / 2, e.bytes.len() - 1] {
+        let _ = decode_integers(&e.bytes[..cut]);
+    }
+}
