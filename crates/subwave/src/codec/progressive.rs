@@ -311,18 +311,13 @@ enum Transform<'h> {
 
 impl<'h> Transform<'h> {
     fn new(h: &'h Hierarchy, w: Wavelet, lifted: bool, frame: DetailFrame) -> Result<Self> {
-        let opts = |scheme| SubdivideOptions {
-            scheme,
-            ..Default::default()
-        };
         Ok(match w {
             Wavelet::Midpoint => {
                 Transform::Tri(TriangleWavelet::midpoint(h, lifted)?.with_frame(frame))
             }
-            Wavelet::Butterfly => Transform::Tri(
-                TriangleWavelet::from_scheme(h, &opts(Scheme::Butterfly), lifted)?
-                    .with_frame(frame),
-            ),
+            Wavelet::Butterfly => {
+                Transform::Tri(TriangleWavelet::butterfly(h, lifted)?.with_frame(frame))
+            }
             Wavelet::Loop => Transform::Tri(
                 TriangleWavelet::loop_pgc(h, &SubdivideOptions::default())?.with_frame(frame),
             ),

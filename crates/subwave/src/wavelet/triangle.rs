@@ -69,6 +69,7 @@ use rayon::prelude::*;
 
 use super::frames::{odd_vertex_frames, Frame};
 use crate::hierarchy::Hierarchy;
+use crate::subdivision::butterfly;
 use crate::subdivision::refine::Split;
 use crate::subdivision::stencil::StencilTable;
 use crate::subdivision::{Refinement, Scheme, SubdivideOptions};
@@ -258,6 +259,35 @@ impl<'h> TriangleWavelet<'h> {
         };
         let r = Refinement::build(&h.base, &o, true)?;
         Self::interpolating(h, r.stencils, lifted)
+    }
+
+    /// The modified butterfly wavelet with the refiner's default options (boundaries as
+    /// creases): [`TriangleWavelet::from_scheme`] with `Scheme::Butterfly`, bit for bit, but
+    /// for a hierarchy without crease or corner tags the prediction tables are built straight
+    /// from the hierarchy's level topologies
+    /// ([`crate::subdivision::butterfly::untagged_level_table`]) instead of refining the base
+    /// mesh again.
+    ///
+    /// # Errors
+    /// As [`TriangleWavelet::from_scheme`].
+    pub fn butterfly(h: &'h Hierarchy, lifted: bool) -> Result<Self> {
+        require_triangles(h)?;
+        let untagged = h.topologies.iter().all(|t| {
+            t.edge_sharpness.iter().all(|&s| s == 0.0)
+                && t.vertex_sharpness.iter().all(|&s| s == 0.0)
+        });
+        if !untagged || h.topologies.is_empty() {
+            let opts = SubdivideOptions {
+                scheme: Scheme::Butterfly,
+                ..Default::default()
+            };
+            return Self::from_scheme(h, &opts, lifted);
+        }
+        let tables = h.topologies[..h.levels()]
+            .par_iter()
+            .map(butterfly::untagged_level_table)
+            .collect();
+        Self::interpolating(h, tables, lifted)
     }
 
     /// The Loop wavelet of PGC. `opts` gives the boundary mode, creasing and β of the Loop
@@ -1349,6 +1379,56 @@ mod tests {
 mod butterfly_wavelets {
     use super::*;
     use crate::generate;
+    /// The butterfly tables built from the hierarchy's topologies equal the refiner's, bit
+    /// for bit, on closed and open meshes with valences 3 to 8 and more, tiny meshes whose
+    /// stencils repeat vertices, and a hierarchy in another vertex order.
+    #[test]
+    fn butterfly_tables_equal_the_refiners() {
+        let tri = |m: crate::mesh::Mesh| {
+            crate::mesh::Mesh::from_triangles(m.positions.clone(), &m.triangulate().0)
+        };
+        let bases = [
+            generate::tetrahedron(),
+            generate::icosahedron(),
+            generate::grid(3, 2, true),
+            generate::grid(1, 1, true),
+            generate::torus(1.0, 0.4, 8, 6, true),
+            generate::torus(1.0, 0.4, 3, 3, true),
+            generate::triangle_grid(3),
+            generate::disk(7),
+            generate::disk(3),
+            tri(generate::cube()),
+            tri(generate::pyramid()),
+        ];
+        let opts = SubdivideOptions {
+            scheme: Scheme::Butterfly,
+            ..Default::default()
+        };
+        for (i, base) in bases.iter().enumerate() {
+            let h = Hierarchy::new(base, 3, Split::Triangles, None).unwrap();
+            let fast = TriangleWavelet::butterfly(&h, true).unwrap();
+            let slow = TriangleWavelet::from_scheme(&h, &opts, true).unwrap();
+            assert_eq!(fast.tables().len(), 3);
+            for (j, (a, b)) in fast.tables().iter().zip(slow.tables()).enumerate() {
+                assert!(a == b, "mesh {i}, level {j}: the tables differ");
+            }
+        }
+        // A detected hierarchy (its own vertex order).
+        let fine = crate::subdivision::subdivide(
+            &generate::icosahedron(),
+            &SubdivideOptions {
+                scheme: Scheme::Midpoint,
+                levels: 2,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let (h, _) = Hierarchy::detect(&fine, None).unwrap();
+        let fast = TriangleWavelet::butterfly(&h, false).unwrap();
+        let slow = TriangleWavelet::from_scheme(&h, &opts, false).unwrap();
+        assert!(fast.tables() == slow.tables());
+    }
+
     #[test]
     fn butterfly_wavelets_reconstruct_and_equal_butterfly_subdivision() {
         for base in [
