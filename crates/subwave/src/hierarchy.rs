@@ -37,7 +37,7 @@ use std::hash::{BuildHasherDefault, Hasher};
 use glam::DVec3;
 
 use crate::mesh::Mesh;
-use crate::subdivision::refine::{refine_topology, Split};
+use crate::subdivision::refine::{child_faces, child_vertex_count, refine_topology, Split};
 use crate::subdivision::MAX_FACES;
 use crate::topology::{Topology, VertexKind};
 use crate::validate::{require_arity, require_manifold};
@@ -105,36 +105,7 @@ impl Hierarchy {
         split: Split,
         positions: Option<Vec<DVec3>>,
     ) -> Result<Hierarchy> {
-        base.check_indices()?;
-        if split == Split::Triangles {
-            require_arity(
-                base,
-                3,
-                "triangle hierarchy",
-                "triangles",
-                "use Split::Polygons (quads) for polygon meshes",
-            )?;
-        }
-        let faces_out = match split {
-            Split::Triangles | Split::QuadTri => {
-                (base.num_faces() as u64).saturating_mul(4u64.saturating_pow(levels))
-            }
-            Split::Polygons => (base.face_indices.len() as u64)
-                .saturating_mul(4u64.saturating_pow(levels.saturating_sub(1))),
-        };
-        if levels > 0 && faces_out > MAX_FACES {
-            return Err(Error::InvalidArgument(format!(
-                "{levels} levels on {} faces would make {faces_out} faces, more than the {MAX_FACES} supported; use fewer levels",
-                base.num_faces()
-            )));
-        }
-        let t0 = Topology::build(base);
-        require_manifold(&t0)?;
-        let mut topologies = vec![t0];
-        for _ in 0..levels {
-            let (child, _) = refine_topology(topologies.last().unwrap(), split, false);
-            topologies.push(child);
-        }
+        let topologies = Self::checked_topologies(base, levels, split, false)?;
         let n_fine = topologies.last().unwrap().num_vertices as usize;
         let positions = match positions {
             Some(p) => {
@@ -163,6 +134,85 @@ impl Hierarchy {
             topologies,
             positions,
         })
+    }
+
+    /// The connectivity of [`Hierarchy::new`] for a decoder, without positions: `positions`
+    /// is **empty** (and `base.positions` are `base`'s), levels `0..L` have their full
+    /// topology, and the finest level `L` only its faces (`num_vertices`, `face_offsets`,
+    /// `face_vertices`, `face_arity`; its edge and vertex tables are empty). This is what a
+    /// synthesis reads: level `j`'s transform, the offspring forest and the local frames use
+    /// the topologies of levels `j < L` and the finest faces (the decoder of
+    /// [`crate::codec::progressive`]).
+    ///
+    /// # Errors
+    /// As [`Hierarchy::new`].
+    pub(crate) fn skeleton(base: &Mesh, levels: u32, split: Split) -> Result<Hierarchy> {
+        let topologies = Self::checked_topologies(base, levels, split, true)?;
+        Ok(Hierarchy {
+            split,
+            base: base.clone(),
+            topologies,
+            positions: Vec::new(),
+        })
+    }
+
+    /// The level topologies of `base` split `levels` times, after the checks of
+    /// [`Hierarchy::new`]; with `faces_only_finest`, the finest level holds its faces only
+    /// (see [`Hierarchy::skeleton`]).
+    fn checked_topologies(
+        base: &Mesh,
+        levels: u32,
+        split: Split,
+        faces_only_finest: bool,
+    ) -> Result<Vec<Topology>> {
+        base.check_indices()?;
+        if split == Split::Triangles {
+            require_arity(
+                base,
+                3,
+                "triangle hierarchy",
+                "triangles",
+                "use Split::Polygons (quads) for polygon meshes",
+            )?;
+        }
+        let faces_out = match split {
+            Split::Triangles | Split::QuadTri => {
+                (base.num_faces() as u64).saturating_mul(4u64.saturating_pow(levels))
+            }
+            Split::Polygons => (base.face_indices.len() as u64)
+                .saturating_mul(4u64.saturating_pow(levels.saturating_sub(1))),
+        };
+        if levels > 0 && faces_out > MAX_FACES {
+            return Err(Error::InvalidArgument(format!(
+                "{levels} levels on {} faces would make {faces_out} faces, more than the {MAX_FACES} supported; use fewer levels",
+                base.num_faces()
+            )));
+        }
+        let t0 = Topology::build(base);
+        require_manifold(&t0)?;
+        let mut topologies = Vec::with_capacity(levels as usize + 1);
+        topologies.push(t0);
+        for l in 0..levels {
+            let parent = topologies.last().unwrap();
+            let child = if faces_only_finest && l + 1 == levels {
+                let (face_offsets, face_vertices) = child_faces(parent, split);
+                Topology {
+                    num_vertices: child_vertex_count(parent, split) as u32,
+                    face_arity: if split == Split::QuadTri {
+                        0
+                    } else {
+                        face_offsets.get(1).copied().unwrap_or(0)
+                    },
+                    face_offsets,
+                    face_vertices,
+                    ..Topology::default()
+                }
+            } else {
+                refine_topology(parent, split, false).0
+            };
+            topologies.push(child);
+        }
+        Ok(topologies)
     }
 
     /// Number of subdivision levels `L` (0 for a base mesh alone).

@@ -320,18 +320,13 @@ enum Transform<'h> {
 
 impl<'h> Transform<'h> {
     fn new(h: &'h Hierarchy, w: Wavelet, lifted: bool, frame: DetailFrame) -> Result<Self> {
-        let opts = |scheme| SubdivideOptions {
-            scheme,
-            ..Default::default()
-        };
         Ok(match w {
             Wavelet::Midpoint => {
                 Transform::Tri(TriangleWavelet::midpoint(h, lifted)?.with_frame(frame))
             }
-            Wavelet::Butterfly => Transform::Tri(
-                TriangleWavelet::from_scheme(h, &opts(Scheme::Butterfly), lifted)?
-                    .with_frame(frame),
-            ),
+            Wavelet::Butterfly => {
+                Transform::Tri(TriangleWavelet::butterfly(h, lifted)?.with_frame(frame))
+            }
             Wavelet::Loop => Transform::Tri(
                 TriangleWavelet::loop_pgc(h, &SubdivideOptions::default())?.with_frame(frame),
             ),
@@ -1093,7 +1088,8 @@ fn setup(p: &Parsed, bytes: &[u8]) -> Result<Setup> {
         (m, q)
     };
     let base_positions = base.positions.clone();
-    let hierarchy = Hierarchy::new(&base, h.levels as u32, p.split, None)
+    // Connectivity only: the decoder never reads the finest level's edge and vertex tables.
+    let hierarchy = Hierarchy::skeleton(&base, h.levels as u32, p.split)
         .map_err(|e| derr(off, format!("base mesh chunk: {e}")))?;
     let forest = Forest::new(&hierarchy)?;
     if forest.num_trees != h.num_trees as usize {
@@ -1151,7 +1147,16 @@ pub fn decode(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
         || transform(&p, &s.hierarchy),
     );
     let (coefs, used, planes_complete, planes, complete) = coded?;
-    let mesh = reconstruct_with(&p, &s, &coefs, &t?)?;
+    let positions = reconstruct_with(&p, &s, &coefs, &t?)?;
+    // The finest faces move into the mesh (the hierarchy is not used again).
+    let mut hier = s.hierarchy;
+    let finest = hier.topologies.pop().unwrap_or_default();
+    let mesh = Mesh {
+        positions,
+        face_offsets: finest.face_offsets,
+        face_indices: finest.face_vertices,
+        ..Mesh::new()
+    };
     Ok(Decoded {
         mesh,
         bytes_used: used.min(limit),
@@ -1285,10 +1290,18 @@ fn transform<'h>(p: &Parsed, hier: &'h Hierarchy) -> Result<AnyTransform<'h>> {
 }
 
 fn reconstruct(p: &Parsed, s: &Setup, coefs: &Coefficients) -> Result<Mesh> {
-    reconstruct_with(p, s, coefs, &transform(p, &s.hierarchy)?)
+    let positions = reconstruct_with(p, s, coefs, &transform(p, &s.hierarchy)?)?;
+    let hier = &s.hierarchy;
+    Ok(hier.level_mesh(hier.levels(), positions))
 }
 
-fn reconstruct_with(p: &Parsed, s: &Setup, coefs: &Coefficients, t: &AnyTransform) -> Result<Mesh> {
+/// The finest positions from the coefficients.
+fn reconstruct_with(
+    p: &Parsed,
+    s: &Setup,
+    coefs: &Coefficients,
+    t: &AnyTransform,
+) -> Result<Vec<DVec3>> {
     let h = &p.c.header;
     let hier = &s.hierarchy;
     let v0 = hier.num_vertices(0);
@@ -1335,7 +1348,7 @@ fn reconstruct_with(p: &Parsed, s: &Setup, coefs: &Coefficients, t: &AnyTransfor
             flat
         }
     };
-    Ok(hier.level_mesh(hier.levels(), positions))
+    Ok(positions)
 }
 
 /// A view-dependent decoder of a trees-layout stream (Maret §4.5.1, §5.1.2): trees are added

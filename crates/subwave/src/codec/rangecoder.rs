@@ -218,21 +218,22 @@ impl<'a> Decoder<'a> {
     }
 
     /// Decodes a bit with the adaptive context `ctx` (mirrors [`Encoder::bit`]).
-    #[inline]
+    #[inline(always)]
     pub fn bit(&mut self, ctx: &mut Bit) -> bool {
         // Normalising before the decision (not after) makes `truncated` flag exactly the
         // first decision that depends on a missing byte.
         self.normalize();
-        let bound = (self.range >> PROB_BITS) * ctx.0 as u32;
-        let bit = if self.code < bound {
-            self.range = bound;
-            false
-        } else {
-            self.code -= bound;
-            self.range -= bound;
-            true
-        };
-        ctx.update(bit);
+        // Branch-free (the decision is data-dependent and often unpredictable): the same
+        // arithmetic as the encoder's, selected by masks.
+        let p = ctx.0 as u32;
+        let bound = (self.range >> PROB_BITS) * p;
+        let bit = self.code >= bound;
+        let m = (bit as u32).wrapping_neg();
+        self.code -= bound & m;
+        self.range = (bound & !m) | (self.range.wrapping_sub(bound) & m);
+        let up = p + ((PROB_ONE as u32 - p) >> ADAPT_SHIFT);
+        let down = p - (p >> ADAPT_SHIFT);
+        ctx.0 = ((up & !m) | (down & m)) as u16;
         bit
     }
 

@@ -380,16 +380,6 @@ pub struct SpihtDecoder<'a> {
     lists: Lists,
 }
 
-macro_rules! get {
-    ($dec:expr, $e:expr) => {{
-        let b = $e;
-        if $dec.truncated() {
-            return false;
-        }
-        b
-    }};
-}
-
 impl<'a> SpihtDecoder<'a> {
     /// A decoder of the trees rooted at `roots`, with the stream's top planes.
     pub fn new(forest: &'a Forest, roots: &[u32], top: [i32; 3], contexts: bool) -> Self {
@@ -407,60 +397,81 @@ impl<'a> SpihtDecoder<'a> {
     /// Decodes the current plane into `out`. Returns `false` if the stream ended before the
     /// plane was complete (the state is then that of the exact decisions decoded; decoding
     /// must not continue) or if every plane is done.
+    ///
+    /// # Panics
+    /// If `out` was not made for this decoder's forest ([`Coefficients::new`]).
     pub fn decode_plane(&mut self, dec: &mut Decoder, out: &mut Coefficients) -> bool {
+        assert_eq!(
+            out.lo.len(),
+            3 * self.forest.num_nodes,
+            "coefficients of another forest"
+        );
+        if self.lists.ctx.on {
+            self.decode_passes::<true>(dec, out)
+        } else {
+            self.decode_passes::<false>(dec, out)
+        }
+    }
+
+    /// [`SpihtDecoder::decode_plane`] with contexts on (`ON`) or raw bits: the passes of
+    /// Algorithm 1 in the encoder's order, with the per-decision work kept small (one
+    /// division per entry, branch-free range decoding and refinement).
+    #[inline(never)]
+    fn decode_passes<const ON: bool>(&mut self, dec: &mut Decoder, out: &mut Coefficients) -> bool {
         let n = self.lists.plane;
         if n < 0 {
             return false;
         }
         let thr = 1u32 << n;
+        let nb = n as u8;
         let top = self.lists.top;
+        let active = [top[0] >= n, top[1] >= n, top[2] >= n];
         let forest = self.forest;
-        let lsc_before = self.lists.lsc.len();
+        let levels = &forest.level[..];
         let l = &mut self.lists;
-        let on = l.ctx.on;
-        // Some component of the node significant in an earlier plane (width > n; entries
-        // found significant in this plane have width n, refinement comes after sorting).
-        let other = |out: &Coefficients, e: usize| {
-            let b = e - e % 3;
-            out.width[b..b + 3]
-                .iter()
-                .any(|&w| w != INSIGNIFICANT && w as i32 > n)
+        let lsc_before = l.lsc.len();
+        let Contexts {
+            sig, sign, refine, ..
+        } = &mut l.ctx;
+        let (sig, sign, refine) = (&mut sig[..], &mut sign[..], &mut refine[..]);
+        let Coefficients { lo, width, neg } = out;
+        let (lo, width, neg) = (&mut lo[..], &mut width[..], &mut neg[..]);
+        // One decision with context `ctx` (raw bit without contexts); stops the pass at the
+        // first decision that needs a missing byte.
+        macro_rules! decide {
+            ($ctx:expr) => {{
+                let b = if ON { dec.bit($ctx) } else { dec.raw(1) != 0 };
+                if dec.truncated() {
+                    return false;
+                }
+                b
+            }};
+        }
+        // The context row of node `node`'s significance tests: some component significant in
+        // an earlier plane (width > n; entries found significant in this plane have width n,
+        // refinement comes after sorting), and the level.
+        let sig_row = |width: &[u8], node: usize| -> (usize, usize) {
+            let w = &width[3 * node..3 * node + 3];
+            let earlier = |x: u8| x != INSIGNIFICANT && x > nb;
+            let other = earlier(w[0]) | earlier(w[1]) | earlier(w[2]);
+            (other as usize, (levels[node] as usize).min(CTX_LEVELS - 1))
         };
-        macro_rules! sig {
-            ($test:expr, $e:expr) => {{
-                let e: usize = $e;
-                if on {
-                    let idx = Contexts::sig_index($test, other(out, e), e % 3, forest.level[e / 3]);
-                    get!(dec, dec.bit(&mut l.ctx.sig[idx]))
-                } else {
-                    get!(dec, dec.raw(1) != 0)
-                }
-            }};
-        }
-        macro_rules! sign {
-            ($e:expr) => {{
-                let e: usize = $e;
-                if on {
-                    let idx = Contexts::cl(e % 3, forest.level[e / 3]);
-                    get!(dec, dec.bit(&mut l.ctx.sign[idx]))
-                } else {
-                    get!(dec, dec.raw(1) != 0)
-                }
-            }};
-        }
+        let sig_at = |test: Test, other: usize, c: usize, lv: usize| {
+            (((test as usize) * 2 + other) * 3 + c) * CTX_LEVELS + lv
+        };
         // LIC.
-        let mut idx = 0;
         let mut kept = 0;
-        while idx < l.lic.len() {
+        for idx in 0..l.lic.len() {
             let e = l.lic[idx] as usize;
-            idx += 1;
-            if top[e % 3] >= n {
-                let s = sig!(Test::Lic, e);
-                if s {
-                    let neg = sign!(e);
-                    out.lo[e] = thr;
-                    out.width[e] = n as u8;
-                    out.neg[e] = neg;
+            let node = e / 3;
+            let c = e - 3 * node;
+            if active[c] {
+                let (other, lv) = sig_row(width, node);
+                if decide!(&mut sig[sig_at(Test::Lic, other, c, lv)]) {
+                    let s = decide!(&mut sign[c * CTX_LEVELS + lv]);
+                    lo[e] = thr;
+                    width[e] = nb;
+                    neg[e] = s;
                     l.lsc.push(e as u32);
                     continue;
                 }
@@ -469,25 +480,29 @@ impl<'a> SpihtDecoder<'a> {
             kept += 1;
         }
         l.lic.truncate(kept);
-        // LIS.
+        // LIS (entries appended during the pass are processed in the same pass).
         let mut i = 0;
         let mut kept = 0;
         while i < l.lis.len() {
             let entry = l.lis[i];
             i += 1;
             let e = (entry & !TYPE_B) as usize;
-            let (node, c) = (e / 3, e % 3);
+            let node = e / 3;
+            let c = e - 3 * node;
             let mut keep = true;
-            if top[c] >= n {
+            if active[c] {
+                let (other, lv) = sig_row(width, node);
                 if entry & TYPE_B == 0 {
-                    if sig!(Test::SetA, e) {
+                    if decide!(&mut sig[sig_at(Test::SetA, other, c, lv)]) {
                         for &k in forest.offspring(node) {
-                            let ke = 3 * k as usize + c;
-                            if sig!(Test::Offspring, ke) {
-                                let neg = sign!(ke);
-                                out.lo[ke] = thr;
-                                out.width[ke] = n as u8;
-                                out.neg[ke] = neg;
+                            let k = k as usize;
+                            let ke = 3 * k + c;
+                            let (other, lv) = sig_row(width, k);
+                            if decide!(&mut sig[sig_at(Test::Offspring, other, c, lv)]) {
+                                let s = decide!(&mut sign[c * CTX_LEVELS + lv]);
+                                lo[ke] = thr;
+                                width[ke] = nb;
+                                neg[ke] = s;
                                 l.lsc.push(ke as u32);
                             } else {
                                 l.lic.push(ke as u32);
@@ -498,7 +513,7 @@ impl<'a> SpihtDecoder<'a> {
                         }
                         keep = false;
                     }
-                } else if sig!(Test::SetB, e) {
+                } else if decide!(&mut sig[sig_at(Test::SetB, other, c, lv)]) {
                     for &k in forest.offspring(node) {
                         l.lis.push(3 * k + c as u32);
                     }
@@ -514,16 +529,12 @@ impl<'a> SpihtDecoder<'a> {
         // Refinement.
         for &e in &l.lsc[..lsc_before] {
             let e = e as usize;
-            let bit = if on {
-                let idx = Contexts::cl(e % 3, forest.level[e / 3]);
-                get!(dec, dec.bit(&mut l.ctx.refine[idx]))
-            } else {
-                get!(dec, dec.raw(1) != 0)
-            };
-            if bit {
-                out.lo[e] += thr;
-            }
-            out.width[e] = n as u8;
+            let node = e / 3;
+            let c = e - 3 * node;
+            let lv = (levels[node] as usize).min(CTX_LEVELS - 1);
+            let bit = decide!(&mut refine[c * CTX_LEVELS + lv]);
+            lo[e] += thr & (bit as u32).wrapping_neg();
+            width[e] = nb;
         }
         l.plane -= 1;
         true
@@ -533,6 +544,146 @@ impl<'a> SpihtDecoder<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    macro_rules! get {
+        ($dec:expr, $e:expr) => {{
+            let b = $e;
+            if $dec.truncated() {
+                return false;
+            }
+            b
+        }};
+    }
+
+    /// The straightforward decoder this module had before [`SpihtDecoder::decode_passes`] (kept to
+    /// check that the fast one decodes every prefix to the same state).
+    impl SpihtDecoder<'_> {
+        /// Decodes the current plane into `out`. Returns `false` if the stream ended before the
+        /// plane was complete (the state is then that of the exact decisions decoded; decoding
+        /// must not continue) or if every plane is done.
+        fn decode_plane_reference(&mut self, dec: &mut Decoder, out: &mut Coefficients) -> bool {
+            let n = self.lists.plane;
+            if n < 0 {
+                return false;
+            }
+            let thr = 1u32 << n;
+            let top = self.lists.top;
+            let forest = self.forest;
+            let lsc_before = self.lists.lsc.len();
+            let l = &mut self.lists;
+            let on = l.ctx.on;
+            // Some component of the node significant in an earlier plane (width > n; entries
+            // found significant in this plane have width n, refinement comes after sorting).
+            let other = |out: &Coefficients, e: usize| {
+                let b = e - e % 3;
+                out.width[b..b + 3]
+                    .iter()
+                    .any(|&w| w != INSIGNIFICANT && w as i32 > n)
+            };
+            macro_rules! sig {
+            ($test:expr, $e:expr) => {{
+                let e: usize = $e;
+                if on {
+                    let idx = Contexts::sig_index($test, other(out, e), e % 3, forest.level[e / 3]);
+                    get!(dec, dec.bit(&mut l.ctx.sig[idx]))
+                } else {
+                    get!(dec, dec.raw(1) != 0)
+                }
+            }};
+        }
+            macro_rules! sign {
+            ($e:expr) => {{
+                let e: usize = $e;
+                if on {
+                    let idx = Contexts::cl(e % 3, forest.level[e / 3]);
+                    get!(dec, dec.bit(&mut l.ctx.sign[idx]))
+                } else {
+                    get!(dec, dec.raw(1) != 0)
+                }
+            }};
+        }
+            // LIC.
+            let mut idx = 0;
+            let mut kept = 0;
+            while idx < l.lic.len() {
+                let e = l.lic[idx] as usize;
+                idx += 1;
+                if top[e % 3] >= n {
+                    let s = sig!(Test::Lic, e);
+                    if s {
+                        let neg = sign!(e);
+                        out.lo[e] = thr;
+                        out.width[e] = n as u8;
+                        out.neg[e] = neg;
+                        l.lsc.push(e as u32);
+                        continue;
+                    }
+                }
+                l.lic[kept] = e as u32;
+                kept += 1;
+            }
+            l.lic.truncate(kept);
+            // LIS.
+            let mut i = 0;
+            let mut kept = 0;
+            while i < l.lis.len() {
+                let entry = l.lis[i];
+                i += 1;
+                let e = (entry & !TYPE_B) as usize;
+                let (node, c) = (e / 3, e % 3);
+                let mut keep = true;
+                if top[c] >= n {
+                    if entry & TYPE_B == 0 {
+                        if sig!(Test::SetA, e) {
+                            for &k in forest.offspring(node) {
+                                let ke = 3 * k as usize + c;
+                                if sig!(Test::Offspring, ke) {
+                                    let neg = sign!(ke);
+                                    out.lo[ke] = thr;
+                                    out.width[ke] = n as u8;
+                                    out.neg[ke] = neg;
+                                    l.lsc.push(ke as u32);
+                                } else {
+                                    l.lic.push(ke as u32);
+                                }
+                            }
+                            if has_grandchildren(forest, node) {
+                                l.lis.push(e as u32 | TYPE_B);
+                            }
+                            keep = false;
+                        }
+                    } else if sig!(Test::SetB, e) {
+                        for &k in forest.offspring(node) {
+                            l.lis.push(3 * k + c as u32);
+                        }
+                        keep = false;
+                    }
+                }
+                if keep {
+                    l.lis[kept] = entry;
+                    kept += 1;
+                }
+            }
+            l.lis.drain(kept..i);
+            // Refinement.
+            for &e in &l.lsc[..lsc_before] {
+                let e = e as usize;
+                let bit = if on {
+                    let idx = Contexts::cl(e % 3, forest.level[e / 3]);
+                    get!(dec, dec.bit(&mut l.ctx.refine[idx]))
+                } else {
+                    get!(dec, dec.raw(1) != 0)
+                };
+                if bit {
+                    out.lo[e] += thr;
+                }
+                out.width[e] = n as u8;
+            }
+            l.plane -= 1;
+            true
+        }
+    }
+
     use crate::generate;
     use crate::hierarchy::Hierarchy;
     use crate::subdivision::refine::Split;
@@ -592,6 +743,57 @@ mod tests {
                     let w = 1u32 << out.width[i];
                     assert!(out.lo[i] <= m.mag[i] && m.mag[i] < out.lo[i] + w);
                     assert_eq!(out.neg[i], m.neg[i]);
+                }
+            }
+        }
+    }
+
+    /// The fast decoder equals the reference decoder on every prefix of several streams
+    /// (same coefficients, same planes, same stop), with and without contexts, over whole
+    /// forests and single trees, on a closed and an open hierarchy.
+    #[test]
+    fn fast_decoder_equals_reference_on_every_prefix() {
+        let meshes = [generate::icosahedron(), generate::grid(3, 2, true)];
+        for (mi, base) in meshes.iter().enumerate() {
+            let h = Hierarchy::new(base, 4, Split::Triangles, None).unwrap();
+            let f = Forest::new(&h).unwrap();
+            let m = sample(&f, 11 + mi as u64);
+            let all: Vec<u32> = (0..f.num_trees as u32).collect();
+            for roots in [all, vec![1]] {
+                for contexts in [true, false] {
+                    let mut e = SpihtEncoder::new(&f, &m, &roots, contexts);
+                    let mut enc = Encoder::new();
+                    while e.code_plane(&mut enc) {}
+                    let bytes = enc.finish();
+                    let step = (bytes.len() / 97).max(1);
+                    let cuts = (0..=bytes.len()).step_by(step).chain([bytes.len()]);
+                    for cut in cuts {
+                        let run = |fast: bool| {
+                            let mut d = SpihtDecoder::new(&f, &roots, m.top, contexts);
+                            let mut dec = Decoder::new(&bytes[..cut]);
+                            let mut out = Coefficients::new(&f);
+                            let mut planes = 0;
+                            while if fast {
+                                d.decode_plane(&mut dec, &mut out)
+                            } else {
+                                d.decode_plane_reference(&mut dec, &mut out)
+                            } {
+                                planes += 1;
+                            }
+                            (
+                                out.lo,
+                                out.width,
+                                out.neg,
+                                planes,
+                                d.plane(),
+                                dec.position(),
+                            )
+                        };
+                        assert!(
+                            run(true) == run(false),
+                            "mesh {mi}, contexts {contexts}, cut {cut}"
+                        );
+                    }
                 }
             }
         }

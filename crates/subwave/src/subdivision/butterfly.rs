@@ -65,7 +65,12 @@
 use std::f64::consts::TAU;
 
 use super::refine::Split;
-use super::rules::{EdgeMask, EdgeNeighborhood, EndRing, Rules, VertexMask, VertexNeighborhood};
+use super::rules::{
+    decrement, EdgeMask, EdgeNeighborhood, EndRing, Rules, VertexMask, VertexNeighborhood,
+};
+use super::stencil::StencilTable;
+use crate::mesh::SHARPNESS_INFINITE;
+use crate::topology::Topology;
 
 /// Which butterfly.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -274,6 +279,272 @@ impl Rules for ButterflyRules {
             mask.blend(1.0 - s, scratch, s);
         }
     }
+}
+
+/// The stencil table of one level of modified butterfly refinement of an **untagged**
+/// triangle mesh (boundary edges as creases, the refiner's defaults), built straight from the
+/// level's topology: bit for bit the table that [`super::Refinement::build`] keeps for that
+/// level with `Scheme::Butterfly` and default options (same rows, indices in the same order,
+/// same weights), without refining positions or re-ordering the 1-rings of the whole level.
+///
+/// Interior edges whose ends are both interior vertices of valence 6 get the 8-point stencil
+/// directly (Dyn, Levin & Gregory, in the refiner's order: the ends, the first end's ring
+/// `r_1, r_2, r_{4}, r_5`, the second end's wings `r_2, r_4`); every other edge goes through
+/// [`ButterflyRules`] with its ends' counter-clockwise rings walked locally, as the refiner
+/// does with its ordered rings.
+///
+/// Contract: `topo` is a level of a consistently oriented 2-manifold triangle mesh (as every
+/// level of a [`crate::hierarchy::Hierarchy`] is); its edge and vertex sharpness are ignored
+/// (the mesh must carry no crease or corner tags for the equality above to hold).
+pub fn untagged_level_table(topo: &Topology) -> StencilTable {
+    let nv = topo.num_vertices as usize;
+    let ne = topo.num_edges();
+    let mut offsets = Vec::with_capacity(nv + ne + 1);
+    offsets.extend(0..=nv as u32);
+    let mut indices = Vec::with_capacity(nv + 8 * ne);
+    indices.extend(0..nv as u32);
+    let mut weights = Vec::with_capacity(nv + 8 * ne);
+    weights.resize(nv, 1.0);
+    // Interior vertices of valence 6 (no boundary edge: as many faces as edges).
+    let regular: Vec<bool> = (0..nv)
+        .map(|v| {
+            let k = topo.valence(v);
+            k == 6 && topo.vertex_faces(v).len() == k
+        })
+        .collect();
+    let mut scratch = RingScratch::default();
+    const W: f64 = -1.0 / 16.0;
+    for e in 0..ne {
+        let [a, b] = topo.edge_vertices[e];
+        let faces = topo.edge_faces(e);
+        let fast = if faces.len() == 2 && regular[a as usize] && regular[b as usize] {
+            regular_stencil(topo, e, a, b, faces)
+        } else {
+            None
+        };
+        match fast {
+            Some(r) => {
+                indices.extend_from_slice(&[a, b, r[0], r[1], r[2], r[3], r[4], r[5]]);
+                weights.extend_from_slice(&[0.5, 0.5, 0.125, W, W, 0.125, W, W]);
+            }
+            None => {
+                general_stencil(topo, e, &mut scratch);
+                indices.extend_from_slice(&scratch.idx);
+                weights.extend_from_slice(&scratch.w);
+            }
+        }
+        offsets.push(indices.len() as u32);
+    }
+    StencilTable {
+        num_sources: nv as u32,
+        offsets,
+        indices,
+        weights,
+    }
+}
+
+/// The third vertex of triangle `f` (not `u` or `v`, two of its corners).
+#[inline]
+fn third(topo: &Topology, f: u32, u: u32, v: u32) -> u32 {
+    let fv = topo.face_vertices(f as usize);
+    fv[0] ^ fv[1] ^ fv[2] ^ u ^ v
+}
+
+/// The face across edge `x` from face `f` (`None` on a boundary).
+#[inline]
+fn across(topo: &Topology, x: u32, f: u32) -> Option<u32> {
+    match topo.edge_faces(x as usize) {
+        &[g, h] => Some(if g == f { h } else { g }),
+        _ => None,
+    }
+}
+
+/// The ring vertices of the regular 8-point stencil of interior edge `e = (a, b)`, both ends
+/// interior of valence 6: `[r0_1, r0_2, r0_4, r0_5, r1_2, r1_4]` (ring of `a` from `b`, ring
+/// of `b` from `a`, counter-clockwise), or `None` if they are not 8 distinct vertices with
+/// the ends (the general path then merges repeated ones as the refiner does).
+#[inline]
+fn regular_stencil(topo: &Topology, e: usize, a: u32, b: u32, faces: &[u32]) -> Option<[u32; 6]> {
+    // f_left holds a→b, f_right holds b→a.
+    let corner = |f: u32| -> Option<usize> {
+        let fv = topo.face_vertices(f as usize);
+        (0..3).find(|&i| fv[i] == a && fv[(i + 1) % 3] == b)
+    };
+    let (fl, fr, il) = match (corner(faces[0]), corner(faces[1])) {
+        (Some(i), None) => (faces[0], faces[1], i),
+        (None, Some(i)) => (faces[1], faces[0], i),
+        _ => return None,
+    };
+    let fvl = topo.face_vertices(fl as usize);
+    let fel = topo.face_edges(fl as usize);
+    let ol = fvl[(il + 2) % 3];
+    let fvr = topo.face_vertices(fr as usize);
+    let fer = topo.face_edges(fr as usize);
+    let ir = (0..3).find(|&i| fvr[i] == b && fvr[(i + 1) % 3] == a)?;
+    let or = fvr[(ir + 2) % 3];
+    debug_assert_eq!(fel[il] as usize, e);
+    // Edges (a, o_L), (b, o_L) of f_left; (a, o_R), (b, o_R) of f_right.
+    let (a_ol, b_ol) = (fel[(il + 2) % 3], fel[(il + 1) % 3]);
+    let (a_or, b_or) = (fer[(ir + 1) % 3], fer[(ir + 2) % 3]);
+    let wing = |x: u32, f: u32, u: u32, v: u32| across(topo, x, f).map(|g| third(topo, g, u, v));
+    let r = [
+        ol,
+        wing(a_ol, fl, a, ol)?,
+        wing(a_or, fr, a, or)?,
+        or,
+        wing(b_or, fr, b, or)?,
+        wing(b_ol, fl, b, ol)?,
+    ];
+    let all = [a, b, r[0], r[1], r[2], r[3], r[4], r[5]];
+    for i in 1..8 {
+        if all[..i].contains(&all[i]) {
+            return None;
+        }
+    }
+    Some(r)
+}
+
+/// Scratch space of [`general_stencil`].
+#[derive(Default)]
+struct RingScratch {
+    idx: Vec<u32>,
+    w: Vec<f64>,
+    edges: Vec<u32>,
+    used: Vec<bool>,
+    ring_sharp: [Vec<f64>; 2],
+    ring_verts: [Vec<u32>; 2],
+    m: EdgeMask,
+    s: EdgeMask,
+}
+
+impl RingScratch {
+    /// Adds `w · x` to the stencil, merging a repeated index (the refiner's builder).
+    #[inline]
+    fn add(&mut self, x: u32, w: f64) {
+        if w == 0.0 {
+            return;
+        }
+        if let Some(k) = self.idx.iter().position(|&y| y == x) {
+            self.w[k] += w;
+        } else {
+            self.idx.push(x);
+            self.w.push(w);
+        }
+    }
+}
+
+/// The edges around `v` in the refiner's counter-clockwise order (the ordered 1-ring of
+/// [`Topology`]: from the corner whose outgoing edge is a boundary edge on a boundary), into
+/// `edges`.
+fn ordered_edges(topo: &Topology, v: usize, edges: &mut Vec<u32>, used: &mut Vec<bool>) {
+    let faces = topo.vertex_faces(v);
+    let corners = topo.vertex_face_corners(v);
+    let n = faces.len();
+    edges.clear();
+    if n == 0 {
+        return;
+    }
+    // Outgoing and incoming edge of corner k.
+    let out_in = |k: usize| {
+        let fe = topo.face_edges(faces[k] as usize);
+        let i = corners[k] as usize;
+        (fe[i], fe[(i + fe.len() - 1) % fe.len()])
+    };
+    let start = (0..n)
+        .find(|&k| topo.is_boundary_edge(out_in(k).0 as usize))
+        .unwrap_or(0);
+    let boundary = topo.is_boundary_edge(out_in(start).0 as usize);
+    used.clear();
+    used.resize(n, false);
+    let mut k = start;
+    let (entry, mut exit) = out_in(k);
+    edges.push(entry);
+    loop {
+        used[k] = true;
+        edges.push(exit);
+        match (0..n).find(|&k2| k2 != k && out_in(k2).0 == exit) {
+            Some(k2) if !used[k2] => {
+                k = k2;
+                exit = out_in(k2).1;
+            }
+            _ => break,
+        }
+    }
+    if !boundary {
+        edges.pop();
+    }
+}
+
+/// The stencil of edge `e` through [`ButterflyRules`] (the refiner's ring path), into
+/// `s.idx`, `s.w`.
+fn general_stencil(topo: &Topology, e: usize, s: &mut RingScratch) {
+    let ends = topo.edge_vertices[e];
+    let faces = topo.edge_faces(e);
+    let sharp = |x: u32| {
+        if topo.is_boundary_edge(x as usize) {
+            SHARPNESS_INFINITE
+        } else {
+            0.0
+        }
+    };
+    for (k, &v) in ends.iter().enumerate() {
+        ordered_edges(topo, v as usize, &mut s.edges, &mut s.used);
+        let n = s.edges.len();
+        let at = s.edges.iter().position(|&x| x as usize == e).unwrap_or(0);
+        s.ring_sharp[k].clear();
+        s.ring_verts[k].clear();
+        for j in 0..n {
+            let x = s.edges[(at + j) % n];
+            s.ring_sharp[k].push(sharp(x));
+            s.ring_verts[k].push(topo.other_vertex(x as usize, v));
+        }
+    }
+    let sharpness = sharp(e as u32);
+    let n = EdgeNeighborhood {
+        sharpness,
+        num_faces: faces.len(),
+        face_arity: faces
+            .first()
+            .map_or(0, |&f| topo.face_vertices(f as usize).len()),
+        ends: [None, None],
+        child_sharpness: [decrement(sharpness); 2],
+    };
+    let rings = [0, 1].map(|k| EndRing {
+        sharpness: &s.ring_sharp[k],
+        vertex_sharpness: 0.0,
+        num_faces: topo.vertex_faces(ends[k] as usize).len(),
+    });
+    ButterflyRules::default().edge_mask_with_rings(&n, &rings, &mut s.m, &mut s.s);
+    let m = std::mem::take(&mut s.m);
+    s.idx.clear();
+    s.w.clear();
+    for (&v, &w) in ends.iter().zip(&m.ends) {
+        if w != 0.0 {
+            s.idx.push(v);
+            s.w.push(w);
+        }
+    }
+    for (i, &f) in faces.iter().enumerate() {
+        let w = m.faces.get(i).copied().unwrap_or(0.0);
+        let opp = topo
+            .face_vertices(f as usize)
+            .iter()
+            .copied()
+            .find(|&x| x != ends[0] && x != ends[1]);
+        if let Some(o) = opp {
+            s.add(o, w);
+        }
+    }
+    for k in 0..2 {
+        for j in 0..s.ring_verts[k].len() {
+            let (v, w) = (
+                s.ring_verts[k][j],
+                m.rings[k].get(j).copied().unwrap_or(0.0),
+            );
+            s.add(v, w);
+        }
+    }
+    s.m = m;
 }
 
 #[cfg(test)]

@@ -69,9 +69,11 @@ use rayon::prelude::*;
 
 use super::frames::{odd_vertex_frames, Frame};
 use crate::hierarchy::Hierarchy;
+use crate::subdivision::butterfly;
 use crate::subdivision::refine::Split;
 use crate::subdivision::stencil::StencilTable;
 use crate::subdivision::{Refinement, Scheme, SubdivideOptions};
+use crate::topology::Topology;
 use crate::{Error, Result};
 
 /// Coordinates of the detail vectors.
@@ -260,6 +262,35 @@ impl<'h> TriangleWavelet<'h> {
         Self::interpolating(h, r.stencils, lifted)
     }
 
+    /// The modified butterfly wavelet with the refiner's default options (boundaries as
+    /// creases): [`TriangleWavelet::from_scheme`] with `Scheme::Butterfly`, bit for bit, but
+    /// for a hierarchy without crease or corner tags the prediction tables are built straight
+    /// from the hierarchy's level topologies
+    /// ([`crate::subdivision::butterfly::untagged_level_table`]) instead of refining the base
+    /// mesh again.
+    ///
+    /// # Errors
+    /// As [`TriangleWavelet::from_scheme`].
+    pub fn butterfly(h: &'h Hierarchy, lifted: bool) -> Result<Self> {
+        require_triangles(h)?;
+        let untagged = h.topologies.iter().all(|t| {
+            t.edge_sharpness.iter().all(|&s| s == 0.0)
+                && t.vertex_sharpness.iter().all(|&s| s == 0.0)
+        });
+        if !untagged || h.topologies.is_empty() {
+            let opts = SubdivideOptions {
+                scheme: Scheme::Butterfly,
+                ..Default::default()
+            };
+            return Self::from_scheme(h, &opts, lifted);
+        }
+        let tables = h.topologies[..h.levels()]
+            .par_iter()
+            .map(butterfly::untagged_level_table)
+            .collect();
+        Self::interpolating(h, tables, lifted)
+    }
+
     /// The Loop wavelet of PGC. `opts` gives the boundary mode, creasing and β of the Loop
     /// tables (its `scheme` and `levels` are ignored).
     ///
@@ -344,11 +375,20 @@ impl<'h> TriangleWavelet<'h> {
 
     /// The frames of level `level`'s odd vertices on the predicted surface `predicted`.
     fn frames(&self, level: usize, predicted: &[DVec3]) -> Vec<Frame> {
-        odd_vertex_frames(
-            self.h.topology(level),
-            self.h.topology(level + 1),
-            predicted,
-        )
+        let fine = self.h.topology(level + 1);
+        if fine.rings_ordered && !fine.vertex_face_offsets.is_empty() {
+            return odd_vertex_frames(self.h.topology(level), fine, predicted);
+        }
+        // Unordered fine level (every level a hierarchy builds): the same frames from the
+        // coarse topology.
+        let nc = self.h.num_vertices(level);
+        let (even, odd) = predicted.split_at(nc);
+        let t = self.h.topology(level);
+        (0..odd.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|e| coarse_frame(t, even, odd, e))
+            .collect()
     }
 
     /// `c += ±U d` (the update step), in place.
@@ -516,6 +556,7 @@ impl<'h> TriangleWavelet<'h> {
     pub fn reconstruct_in_place(&self, data: &mut [DVec3]) -> Result<()> {
         let l = self.tables.len();
         Self::check_len("flat", l, data.len(), self.h.num_vertices(l))?;
+        let mut pred = Vec::new();
         for j in 0..l {
             let n = self.h.num_vertices(j + 1);
             let nc = self.h.num_vertices(j);
@@ -527,6 +568,12 @@ impl<'h> TriangleWavelet<'h> {
                     }
                     self.predict_odd(j, even, odd, 1.0);
                 }
+                (Kind::Interpolating { lifted }, DetailFrame::Local)
+                    if !self.h.topology(j + 1).rings_ordered =>
+                {
+                    let (even, odd) = data[..n].split_at_mut(nc);
+                    self.synthesize_local_in_place(j, even, odd, &mut pred, lifted);
+                }
                 _ => {
                     let (c, d) = data[..n].split_at(nc);
                     let fine = self.synthesize_level(j, c, d)?;
@@ -535,6 +582,47 @@ impl<'h> TriangleWavelet<'h> {
             }
         }
         Ok(())
+    }
+
+    /// One synthesis step of an interpolating wavelet with local frames, in place, bit for
+    /// bit [`TriangleWavelet::synthesize_level`]: `even` holds the coarse signal, `odd` the
+    /// details in local coordinates on entry; both hold level `level + 1` on return. `pred`
+    /// is scratch space (the predicted odd vertices). Needs an unordered fine level (the
+    /// frames are computed from the coarse topology, [`coarse_frame`]).
+    fn synthesize_local_in_place(
+        &self,
+        level: usize,
+        even: &mut [DVec3],
+        odd: &mut [DVec3],
+        pred: &mut Vec<DVec3>,
+        lifted: bool,
+    ) {
+        let t = self.h.topology(level);
+        pred.clear();
+        pred.resize(odd.len(), DVec3::ZERO);
+        self.predict_odd(level, even, pred, 1.0);
+        {
+            let (even, pred) = (&*even, &pred[..]);
+            odd.par_chunks_mut(ODD_CHUNK)
+                .enumerate()
+                .for_each(|(c, out)| {
+                    for (i, d) in out.iter_mut().enumerate() {
+                        *d = coarse_frame(t, even, pred, c * ODD_CHUNK + i).to_global(*d);
+                    }
+                });
+        }
+        if lifted {
+            self.update(level, even, odd, -1.0);
+            self.predict_odd(level, even, odd, 1.0);
+        } else {
+            odd.par_chunks_mut(ODD_CHUNK)
+                .zip(pred.par_chunks(ODD_CHUNK))
+                .for_each(|(o, p)| o.iter_mut().zip(p).for_each(|(x, p)| *x = *p + *x));
+        }
+        // The even rows of the table are the identity, applied as `0 + 1 · x` (which turns a
+        // −0 into +0, as the allocating synthesis does).
+        even.par_chunks_mut(ODD_CHUNK)
+            .for_each(|c| c.iter_mut().for_each(|x| *x = DVec3::ZERO + *x));
     }
 
     /// `odd[e] = sign · odd[e] + (S_j even)_{odd e}` for `sign = 1` (synthesis), or
@@ -602,6 +690,58 @@ impl<'h> TriangleWavelet<'h> {
         }
         Ok(signal)
     }
+}
+
+/// The local frame of the odd vertex of level-`j` edge `e` ([`odd_vertex_frames`]) from the
+/// coarse topology `t` alone: the predicted level `j + 1` is `even` (the coarse vertices, as
+/// the identity rows of the prediction give them, `0 + x`) then `odd`, and the fine faces
+/// around the odd vertex are the children (Maret eq. 5.7) of `e`'s faces that hold it, in
+/// fine face order (the order of an unordered fine topology's `vertex_faces`).
+fn coarse_frame(t: &Topology, even: &[DVec3], odd: &[DVec3], e: usize) -> Frame {
+    let nc = even.len() as u32;
+    let pos = |v: u32| {
+        if v < nc {
+            DVec3::ZERO + even[v as usize]
+        } else {
+            odd[(v - nc) as usize]
+        }
+    };
+    let normal = |tri: [u32; 3]| {
+        let mut n = DVec3::ZERO;
+        for i in 0..3 {
+            n += pos(tri[i]).cross(pos(tri[(i + 1) % 3]));
+        }
+        n
+    };
+    let mut faces = [0u32; 2];
+    let ef = t.edge_faces(e);
+    let k = ef.len().min(2);
+    faces[..k].copy_from_slice(&ef[..k]);
+    if k == 2 && faces[0] > faces[1] {
+        faces.swap(0, 1);
+    }
+    let mut n = DVec3::ZERO;
+    for &f in &faces[..k] {
+        let fv = t.face_vertices(f as usize);
+        let fe = t.face_edges(f as usize);
+        let m = [nc + fe[0], nc + fe[1], nc + fe[2]];
+        let kids = [
+            [fv[0], m[0], m[2]],
+            [fv[1], m[1], m[0]],
+            [fv[2], m[2], m[1]],
+            [m[0], m[1], m[2]],
+        ];
+        let which = match fe.iter().position(|&x| x as usize == e) {
+            Some(0) => [0, 1, 3],
+            Some(1) => [1, 2, 3],
+            _ => [0, 2, 3],
+        };
+        for c in which {
+            n += normal(kids[c]);
+        }
+    }
+    let [a, b] = t.edge_vertices[e];
+    Frame::new(n, pos(b) - pos(a))
 }
 
 fn check_tables(h: &Hierarchy, tables: &[StencilTable]) -> Result<()> {
@@ -1349,6 +1489,155 @@ mod tests {
 mod butterfly_wavelets {
     use super::*;
     use crate::generate;
+    /// The in-place synthesis with local frames (frames from the coarse topology, on a
+    /// hierarchy whose finest level holds faces only, as the decoder builds it) equals,
+    /// bit for bit, the per-level synthesis of the full hierarchy with the frames of the
+    /// fine topology (`odd_vertex_frames`), the refiner's tables and `StencilTable::apply`,
+    /// including the signs of zeros.
+    #[test]
+    fn in_place_local_synthesis_equals_the_reference() {
+        let opts = SubdivideOptions {
+            scheme: Scheme::Butterfly,
+            ..Default::default()
+        };
+        let mut state = 5u64;
+        let mut unit = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for base in [
+            generate::icosahedron(),
+            generate::grid(3, 2, true),
+            generate::torus(1.0, 0.4, 6, 5, true),
+            generate::disk(7),
+        ] {
+            let full = Hierarchy::new(&base, 3, Split::Triangles, None).unwrap();
+            let skeleton = Hierarchy::skeleton(&base, 3, Split::Triangles).unwrap();
+            assert!(skeleton.positions.is_empty());
+            for j in 0..3 {
+                let (a, b) = (full.topology(j), skeleton.topology(j));
+                assert_eq!(a.face_edges, b.face_edges);
+                assert_eq!(a.vertex_faces, b.vertex_faces);
+                assert_eq!(a.vertex_edges, b.vertex_edges);
+            }
+            assert_eq!(
+                full.topology(3).face_vertices,
+                skeleton.topology(3).face_vertices
+            );
+            assert_eq!(full.num_vertices(3), skeleton.num_vertices(3));
+            let n = full.num_vertices(3);
+            let mut flat: Vec<DVec3> = (0..n).map(|_| DVec3::new(unit(), unit(), unit())).collect();
+            // Zeros of both signs, in coarse positions and details.
+            flat[1] = DVec3::new(-0.0, 0.0, -0.0);
+            flat[n - 1] = DVec3::new(-0.0, -0.0, 0.0);
+            flat[n / 2] = DVec3::ZERO;
+            for lifted in [false, true] {
+                for midpoint in [false, true] {
+                    let (slow, fast) = if midpoint {
+                        (
+                            TriangleWavelet::midpoint(&full, lifted).unwrap(),
+                            TriangleWavelet::midpoint(&skeleton, lifted).unwrap(),
+                        )
+                    } else {
+                        (
+                            TriangleWavelet::from_scheme(&full, &opts, lifted).unwrap(),
+                            TriangleWavelet::butterfly(&skeleton, lifted).unwrap(),
+                        )
+                    };
+                    let fast = fast.with_frame(DetailFrame::Local);
+                    // Reference: level by level on the full hierarchy.
+                    let mut signal = flat[..full.num_vertices(0)].to_vec();
+                    for j in 0..3 {
+                        let nc = full.num_vertices(j);
+                        let details = &flat[nc..full.num_vertices(j + 1)];
+                        let table = &slow.tables()[j];
+                        let p = table.apply(&signal);
+                        let frames = odd_vertex_frames(full.topology(j), full.topology(j + 1), &p);
+                        let global: Vec<DVec3> = details
+                            .iter()
+                            .zip(&frames)
+                            .map(|(d, f)| f.to_global(*d))
+                            .collect();
+                        let mut fine = if lifted {
+                            let mut even = signal.clone();
+                            slow.update(j, &mut even, &global, -1.0);
+                            table.apply(&even)
+                        } else {
+                            p
+                        };
+                        for (x, d) in fine[nc..].iter_mut().zip(&global) {
+                            *x += *d;
+                        }
+                        signal = fine;
+                    }
+                    let mut data = flat.clone();
+                    fast.reconstruct_in_place(&mut data).unwrap();
+                    let bits = |v: &[DVec3]| -> Vec<[u64; 3]> {
+                        v.iter()
+                            .map(|p| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()])
+                            .collect()
+                    };
+                    assert!(
+                        bits(&data) == bits(&signal),
+                        "lifted {lifted}, midpoint {midpoint}: the syntheses differ"
+                    );
+                }
+            }
+        }
+    }
+
+    /// The butterfly tables built from the hierarchy's topologies equal the refiner's, bit
+    /// for bit, on closed and open meshes with valences 3 to 8 and more, tiny meshes whose
+    /// stencils repeat vertices, and a hierarchy in another vertex order.
+    #[test]
+    fn butterfly_tables_equal_the_refiners() {
+        let tri = |m: crate::mesh::Mesh| {
+            crate::mesh::Mesh::from_triangles(m.positions.clone(), &m.triangulate().0)
+        };
+        let bases = [
+            generate::tetrahedron(),
+            generate::icosahedron(),
+            generate::grid(3, 2, true),
+            generate::grid(1, 1, true),
+            generate::torus(1.0, 0.4, 8, 6, true),
+            generate::torus(1.0, 0.4, 3, 3, true),
+            generate::triangle_grid(3),
+            generate::disk(7),
+            generate::disk(3),
+            tri(generate::cube()),
+            tri(generate::pyramid()),
+        ];
+        let opts = SubdivideOptions {
+            scheme: Scheme::Butterfly,
+            ..Default::default()
+        };
+        for (i, base) in bases.iter().enumerate() {
+            let h = Hierarchy::new(base, 3, Split::Triangles, None).unwrap();
+            let fast = TriangleWavelet::butterfly(&h, true).unwrap();
+            let slow = TriangleWavelet::from_scheme(&h, &opts, true).unwrap();
+            assert_eq!(fast.tables().len(), 3);
+            for (j, (a, b)) in fast.tables().iter().zip(slow.tables()).enumerate() {
+                assert!(a == b, "mesh {i}, level {j}: the tables differ");
+            }
+        }
+        // A detected hierarchy (its own vertex order).
+        let fine = crate::subdivision::subdivide(
+            &generate::icosahedron(),
+            &SubdivideOptions {
+                scheme: Scheme::Midpoint,
+                levels: 2,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let (h, _) = Hierarchy::detect(&fine, None).unwrap();
+        let fast = TriangleWavelet::butterfly(&h, false).unwrap();
+        let slow = TriangleWavelet::from_scheme(&h, &opts, false).unwrap();
+        assert!(fast.tables() == slow.tables());
+    }
+
     #[test]
     fn butterfly_wavelets_reconstruct_and_equal_butterfly_subdivision() {
         for base in [
