@@ -341,19 +341,42 @@ fn apply_f(t: &StencilTable, r: usize, x: &[DVec3]) -> [f64; 3] {
 
 /// The predictors of a triangle hierarchy.
 struct TriPredictors {
-    mid: Vec<StencilTable>,
-    bfly: Vec<StencilTable>,
+    /// Midpoint tables (built only if a level uses them).
+    mid: Option<Vec<StencilTable>>,
+    /// Butterfly tables (likewise).
+    bfly: Option<Vec<StencilTable>>,
+    /// Vertices per level (`V_0..=V_L`).
+    sizes: Vec<usize>,
     /// The reference surface at the finest level, in grid units (reference streams).
     reference: Option<Vec<DVec3>>,
 }
 
 impl TriPredictors {
-    fn new(h: &Hierarchy, base: &Mesh) -> Result<Self> {
+    /// The predictors of `h`, with the midpoint and butterfly tables if asked for.
+    fn new(h: &Hierarchy, base: &Mesh, mid: bool, bfly: bool) -> Result<Self> {
+        let tables = |on: bool, scheme| -> Result<Option<Vec<StencilTable>>> {
+            Ok(if on {
+                Some(scheme_tables(h, base, scheme)?.stencils)
+            } else {
+                None
+            })
+        };
         Ok(TriPredictors {
-            mid: scheme_tables(h, base, Scheme::Midpoint)?.stencils,
-            bfly: scheme_tables(h, base, Scheme::Butterfly)?.stencils,
+            mid: tables(mid, Scheme::Midpoint)?,
+            bfly: tables(bfly, Scheme::Butterfly)?,
+            sizes: (0..=h.levels()).map(|j| h.num_vertices(j)).collect(),
             reference: None,
         })
+    }
+
+    /// Whether `mode` needs the midpoint and the butterfly tables.
+    fn needs(mode: u8) -> (bool, bool) {
+        match mode {
+            MODE_MIDPOINT | MODE_REF_MIDPOINT => (true, false),
+            MODE_BUTTERFLY | MODE_REF_BUTTERFLY => (false, true),
+            MODE_HALF => (true, true),
+            _ => (false, false),
+        }
     }
 
     fn modes(&self) -> &'static [u8] {
@@ -374,27 +397,32 @@ impl TriPredictors {
     /// Rounded predictions and phases of level `j`'s odd vertices (`V_j..V_{j+1}`) from the
     /// exact values `even` of the level-`j` vertices. `mode` must be one of
     /// [`TriPredictors::modes`].
+    ///
+    /// A mode whose tables were not built predicts the reference (or zero): never for a
+    /// stream the encoder wrote, since the decoder builds the tables its levels name.
     fn predict(&self, mode: u8, j: usize, even: &[[i64; 3]]) -> Vec<([i64; 3], [u8; 3])> {
-        let (mid, bfly) = (&self.mid[j], &self.bfly[j]);
+        let mid = self.mid.as_ref().and_then(|t| t.get(j));
+        let bfly = self.bfly.as_ref().and_then(|t| t.get(j));
         let vj = even.len();
+        let n = self.sizes.get(j + 1).copied().unwrap_or(vj).max(vj);
         let empty = Vec::new();
         let reference = self.reference.as_ref().unwrap_or(&empty);
-        (vj..mid.len())
+        (vj..n)
             .into_par_iter()
             .with_min_len(4096)
             .map(|v| {
-                let p = match mode {
-                    MODE_MIDPOINT => apply_int(mid, v, even),
-                    MODE_BUTTERFLY => apply_int(bfly, v, even),
-                    MODE_HALF => {
+                let p = match (mode, mid, bfly) {
+                    (MODE_MIDPOINT, Some(mid), _) => apply_int(mid, v, even),
+                    (MODE_BUTTERFLY, _, Some(bfly)) => apply_int(bfly, v, even),
+                    (MODE_HALF, Some(mid), Some(bfly)) => {
                         let (a, b) = (apply_int(mid, v, even), apply_int(bfly, v, even));
                         [0, 1, 2].map(|c| 0.5 * (a[c] + b[c]))
                     }
                     _ => {
                         let r = reference.get(v).copied().unwrap_or_default();
                         let t = match mode {
-                            MODE_REF_MIDPOINT => Some(mid),
-                            MODE_REF_BUTTERFLY => Some(bfly),
+                            MODE_REF_MIDPOINT => mid,
+                            MODE_REF_BUTTERFLY => bfly,
                             _ => None,
                         };
                         match t {
@@ -599,7 +627,7 @@ pub(crate) fn encode(
     let mut new_base = nh.base.clone();
     new_base.edge_tags.clear();
     new_base.vertex_tags.clear();
-    let mut pred = TriPredictors::new(&nh, &new_base)?;
+    let mut pred = TriPredictors::new(&nh, &new_base, true, true)?;
     let mut best = encode_tri(&nh, &base_mesh, vertex_map, &q, &pred, None)?;
     // Reference streams: control points of the least-squares Loop or butterfly surface.
     let y: Vec<DVec3> = nh
@@ -859,7 +887,20 @@ pub(crate) fn decode(
     let mut levels_complete = 0u32;
     let mut decoding = true;
     if split == Split::Triangles {
-        let mut pred = TriPredictors::new(&hier, &base).map_err(|e| derr(off, e.to_string()))?;
+        // Build only the tables the present levels name (and midpoint for the levels a
+        // prefix lacks, in plain streams).
+        let (mut need_mid, mut need_bfly) = (!reference, false);
+        for j in 0..l {
+            if let Ok((chunk, _, _)) = level_chunk(c, bytes, j) {
+                if let Some(&m) = chunk.first() {
+                    let (a, b) = TriPredictors::needs(m);
+                    need_mid |= a;
+                    need_bfly |= b;
+                }
+            }
+        }
+        let mut pred = TriPredictors::new(&hier, &base, need_mid, need_bfly)
+            .map_err(|e| derr(off, e.to_string()))?;
         if reference {
             pred.reference = Some(
                 reference_surface(&hier, &base, &base_q, k)
@@ -875,7 +916,7 @@ pub(crate) fn decode(
         let first_coded = if reference { 0 } else { v0 };
         for j in 0..l {
             let (vj, n) = (hier.num_vertices(j), hier.num_vertices(j + 1));
-            let mut mode = MODE_MIDPOINT;
+            let mut mode = if reference { MODE_REF } else { MODE_MIDPOINT };
             let mut got = 0;
             let mut chunk_info = None;
             if decoding {
