@@ -60,6 +60,7 @@
 //! stream's base mesh never has (tags are not coded), so encoder and decoder agree.
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use super::basemesh::{self, BaseMeshOptions};
 use super::container::{self, ChunkKind, Container, Header};
@@ -1236,18 +1237,27 @@ fn reconstruct_with(
         AnyTransform::Float(t) => {
             let mut flat = Vec::with_capacity(v0 + s.forest.num_nodes);
             flat.extend_from_slice(&s.base_positions);
-            for n in 0..s.forest.num_nodes {
-                let mut d = DVec3::ZERO;
-                for c in 0..3 {
-                    let e = 3 * n + c;
-                    let w = coefs.width[e];
-                    if w != INSIGNIFICANT {
-                        d[c] =
-                            quantize::reconstruct(coefs.lo[e], w as u32, coefs.neg[e], h.steps[c]);
-                    }
-                }
-                flat.push(d);
-            }
+            flat.par_extend(
+                (0..s.forest.num_nodes)
+                    .into_par_iter()
+                    .with_min_len(8192)
+                    .map(|n| {
+                        let mut d = DVec3::ZERO;
+                        for c in 0..3 {
+                            let e = 3 * n + c;
+                            let w = coefs.width[e];
+                            if w != INSIGNIFICANT {
+                                d[c] = quantize::reconstruct(
+                                    coefs.lo[e],
+                                    w as u32,
+                                    coefs.neg[e],
+                                    h.steps[c],
+                                );
+                            }
+                        }
+                        d
+                    }),
+            );
             t.inverse(&mut flat)?;
             flat
         }
