@@ -1042,6 +1042,13 @@ fn setup(p: &Parsed, bytes: &[u8]) -> Result<Setup> {
 /// index and base chunk, a chunk failing its checksum (named), declared sizes out of
 /// proportion to the stream, a corrupt base mesh.
 pub fn decode(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
+    // Run on a worker of the thread pool: the parallel steps inside then share work by
+    // stealing instead of each being injected into the pool from outside (a wake-up and a
+    // wait per step).
+    rayon::scope(|_| decode_in_pool(bytes, opts))
+}
+
+fn decode_in_pool(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
     let limit = opts.max_bytes.map_or(bytes.len(), |m| m.min(bytes.len()));
     let bytes = &bytes[..limit];
     let p = parse(bytes)?;

@@ -600,22 +600,36 @@ impl<'h> TriangleWavelet<'h> {
         lifted: bool,
     ) {
         let t = self.h.topology(level);
-        pred.clear();
-        pred.resize(odd.len(), DVec3::ZERO);
-        self.predict_odd(level, even, pred, 1.0);
+        let table = &self.tables[level];
+        let nc = even.len();
+        {
+            let even = &*even;
+            // The predicted odd vertices (`StencilTable::apply`'s sums, written once).
+            pred.clear();
+            pred.par_extend(
+                (nc..nc + odd.len())
+                    .into_par_iter()
+                    .with_min_len(ODD_CHUNK)
+                    .map(|r| {
+                        let (a, b) = (table.offsets[r] as usize, table.offsets[r + 1] as usize);
+                        let mut acc = DVec3::ZERO;
+                        for (&k, &w) in table.indices[a..b].iter().zip(&table.weights[a..b]) {
+                            acc += w * even[k as usize];
+                        }
+                        acc
+                    }),
+            );
+        }
         {
             let (even, pred) = (&*even, &pred[..]);
             // The predicted fine faces' normals, once per face.
             normals.clear();
-            normals.resize(t.num_faces(), [DVec3::ZERO; 4]);
-            normals
-                .par_chunks_mut(ODD_CHUNK / 2)
-                .enumerate()
-                .for_each(|(c, out)| {
-                    for (i, n) in out.iter_mut().enumerate() {
-                        *n = child_normals(t, even, pred, c * (ODD_CHUNK / 2) + i);
-                    }
-                });
+            normals.par_extend(
+                (0..t.num_faces())
+                    .into_par_iter()
+                    .with_min_len(ODD_CHUNK / 2)
+                    .map(|f| child_normals(t, even, pred, f)),
+            );
             let normals = &normals[..];
             odd.par_chunks_mut(ODD_CHUNK)
                 .enumerate()
@@ -728,20 +742,23 @@ fn child_normals(t: &Topology, even: &[DVec3], odd: &[DVec3], f: usize) -> [DVec
     let fv = t.face_vertices(f);
     let fe = t.face_edges(f);
     let m = [nc + fe[0], nc + fe[1], nc + fe[2]];
-    let kids = [
-        [fv[0], m[0], m[2]],
-        [fv[1], m[1], m[0]],
-        [fv[2], m[2], m[1]],
-        [m[0], m[1], m[2]],
-    ];
-    kids.map(|tri| {
-        let p = tri.map(|v| predicted(even, odd, v));
+    // Children (v0 m0 m2), (v1 m1 m0), (v2 m2 m1), (m0 m1 m2).
+    let p = |v: u32| predicted(even, odd, v);
+    let (p0, p1, p2) = (p(fv[0]), p(fv[1]), p(fv[2]));
+    let (q0, q1, q2) = (p(m[0]), p(m[1]), p(m[2]));
+    let newell = |a: DVec3, b: DVec3, c: DVec3| {
         let mut n = DVec3::ZERO;
-        for i in 0..3 {
-            n += p[i].cross(p[(i + 1) % 3]);
-        }
+        n += a.cross(b);
+        n += b.cross(c);
+        n += c.cross(a);
         n
-    })
+    };
+    [
+        newell(p0, q0, q2),
+        newell(p1, q1, q0),
+        newell(p2, q2, q1),
+        newell(q0, q1, q2),
+    ]
 }
 
 /// The local frame of the odd vertex of level-`j` edge `e` ([`odd_vertex_frames`]) from the
