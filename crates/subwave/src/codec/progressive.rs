@@ -65,6 +65,7 @@
 //! stream's base mesh never has (tags are not coded), so encoder and decoder agree.
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use super::basemesh::{self, BaseMeshOptions};
 use super::container::{self, ChunkKind, Container, Header};
@@ -1120,6 +1121,13 @@ fn setup(p: &Parsed, bytes: &[u8]) -> Result<Setup> {
 /// index and base chunk, a chunk failing its checksum (named), declared sizes out of
 /// proportion to the stream, a corrupt base mesh.
 pub fn decode(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
+    // Run on a worker of the thread pool: the parallel steps inside then share work by
+    // stealing instead of each being injected into the pool from outside (a wake-up and a
+    // wait per step).
+    rayon::scope(|_| decode_in_pool(bytes, opts))
+}
+
+fn decode_in_pool(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
     let available = bytes.len();
     let limit = opts.max_bytes.map_or(available, |m| m.min(available));
     let bytes = &bytes[..limit];
@@ -1332,18 +1340,27 @@ fn reconstruct_with(
         AnyTransform::Float(t) => {
             let mut flat = Vec::with_capacity(v0 + s.forest.num_nodes);
             flat.extend_from_slice(&s.base_positions);
-            for n in 0..s.forest.num_nodes {
-                let mut d = DVec3::ZERO;
-                for c in 0..3 {
-                    let e = 3 * n + c;
-                    let w = coefs.width[e];
-                    if w != INSIGNIFICANT {
-                        d[c] =
-                            quantize::reconstruct(coefs.lo[e], w as u32, coefs.neg[e], h.steps[c]);
-                    }
-                }
-                flat.push(d);
-            }
+            flat.par_extend(
+                (0..s.forest.num_nodes)
+                    .into_par_iter()
+                    .with_min_len(8192)
+                    .map(|n| {
+                        let mut d = DVec3::ZERO;
+                        for c in 0..3 {
+                            let e = 3 * n + c;
+                            let w = coefs.width[e];
+                            if w != INSIGNIFICANT {
+                                d[c] = quantize::reconstruct(
+                                    coefs.lo[e],
+                                    w as u32,
+                                    coefs.neg[e],
+                                    h.steps[c],
+                                );
+                            }
+                        }
+                        d
+                    }),
+            );
             t.inverse(&mut flat)?;
             flat
         }

@@ -378,14 +378,28 @@ impl Coefficients {
 pub struct SpihtDecoder<'a> {
     forest: &'a Forest,
     lists: Lists,
+    /// The refinement context of each LSC entry (parallel to `lists.lsc`).
+    lsc_ctx: Vec<u8>,
 }
 
 impl<'a> SpihtDecoder<'a> {
     /// A decoder of the trees rooted at `roots`, with the stream's top planes.
     pub fn new(forest: &'a Forest, roots: &[u32], top: [i32; 3], contexts: bool) -> Self {
+        let mut lists = Lists::new(forest, roots, top, contexts);
+        let mut lsc_ctx = Vec::new();
+        if roots.len() == forest.num_trees {
+            // The whole forest: reserve the lists' largest sizes once (address space only;
+            // no copies while they grow).
+            let n = 3 * forest.num_nodes;
+            lists.lic.reserve(n);
+            lists.lis.reserve(n);
+            lists.lsc.reserve(n);
+            lsc_ctx.reserve(n);
+        }
         SpihtDecoder {
             forest,
-            lists: Lists::new(forest, roots, top, contexts),
+            lists,
+            lsc_ctx,
         }
     }
 
@@ -429,6 +443,7 @@ impl<'a> SpihtDecoder<'a> {
         let forest = self.forest;
         let levels = &forest.level[..];
         let l = &mut self.lists;
+        let lsc_ctx = &mut self.lsc_ctx;
         let lsc_before = l.lsc.len();
         let Contexts {
             sig, sign, refine, ..
@@ -473,6 +488,7 @@ impl<'a> SpihtDecoder<'a> {
                     width[e] = nb;
                     neg[e] = s;
                     l.lsc.push(e as u32);
+                    lsc_ctx.push((c * CTX_LEVELS + lv) as u8);
                     continue;
                 }
             }
@@ -504,6 +520,7 @@ impl<'a> SpihtDecoder<'a> {
                                 width[ke] = nb;
                                 neg[ke] = s;
                                 l.lsc.push(ke as u32);
+                                lsc_ctx.push((c * CTX_LEVELS + lv) as u8);
                             } else {
                                 l.lic.push(ke as u32);
                             }
@@ -527,12 +544,9 @@ impl<'a> SpihtDecoder<'a> {
         }
         l.lis.drain(kept..i);
         // Refinement.
-        for &e in &l.lsc[..lsc_before] {
+        for (&e, &ci) in l.lsc[..lsc_before].iter().zip(&lsc_ctx[..lsc_before]) {
             let e = e as usize;
-            let node = e / 3;
-            let c = e - 3 * node;
-            let lv = (levels[node] as usize).min(CTX_LEVELS - 1);
-            let bit = decide!(&mut refine[c * CTX_LEVELS + lv]);
+            let bit = decide!(&mut refine[ci as usize]);
             lo[e] += thr & (bit as u32).wrapping_neg();
             width[e] = nb;
         }

@@ -72,6 +72,9 @@ use super::stencil::StencilTable;
 use crate::mesh::SHARPNESS_INFINITE;
 use crate::topology::Topology;
 
+/// "No vertex / edge".
+const NONE: u32 = u32::MAX;
+
 /// Which butterfly.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum ButterflyVariant {
@@ -312,19 +315,50 @@ pub fn untagged_level_table(topo: &Topology) -> StencilTable {
             k == 6 && topo.vertex_faces(v).len() == k
         })
         .collect();
+    // Per edge and side: the opposite vertex and the next and previous edges of the face
+    // on that side (side 0: the face traversing the edge in its stored direction, the
+    // first; side 1: the other).
+    let mut side = vec![[[NONE; 3]; 2]; ne];
+    for f in 0..topo.num_faces() {
+        let (fv, fe) = (topo.face_vertices(f), topo.face_edges(f));
+        if fv.len() != 3 {
+            continue;
+        }
+        for i in 0..3 {
+            let x = fe[i] as usize;
+            let slot = (topo.edge_vertices[x][0] != fv[i]) as usize;
+            side[x][slot] = [fv[(i + 2) % 3], fe[(i + 1) % 3], fe[(i + 2) % 3]];
+        }
+    }
+    // The vertex across edge `x` from the face that traverses it from `u`.
+    let wing = |x: u32, u: u32| -> u32 {
+        let x = x as usize;
+        let s = (topo.edge_vertices[x][0] != u) as usize;
+        side[x][1 - s][0]
+    };
     let mut scratch = RingScratch::default();
     const W: f64 = -1.0 / 16.0;
-    for e in 0..ne {
+    for (e, &[l, r]) in side.iter().enumerate() {
         let [a, b] = topo.edge_vertices[e];
-        let faces = topo.edge_faces(e);
-        let fast = if faces.len() == 2 && regular[a as usize] && regular[b as usize] {
-            regular_stencil(topo, e, a, b, faces)
-        } else {
-            None
-        };
+        let mut fast = None;
+        if regular[a as usize] && regular[b as usize] && l[0] != NONE && r[0] != NONE {
+            let ring = [
+                l[0],
+                wing(l[2], l[0]),
+                wing(r[1], a),
+                r[0],
+                wing(r[2], r[0]),
+                wing(l[1], b),
+            ];
+            let all = [a, b, ring[0], ring[1], ring[2], ring[3], ring[4], ring[5]];
+            let distinct = (1..8).all(|i| !all[..i].contains(&all[i]));
+            if distinct && !ring.contains(&NONE) {
+                fast = Some(all);
+            }
+        }
         match fast {
-            Some(r) => {
-                indices.extend_from_slice(&[a, b, r[0], r[1], r[2], r[3], r[4], r[5]]);
+            Some(all) => {
+                indices.extend_from_slice(&all);
                 weights.extend_from_slice(&[0.5, 0.5, 0.125, W, W, 0.125, W, W]);
             }
             None => {
@@ -343,67 +377,6 @@ pub fn untagged_level_table(topo: &Topology) -> StencilTable {
     }
 }
 
-/// The third vertex of triangle `f` (not `u` or `v`, two of its corners).
-#[inline]
-fn third(topo: &Topology, f: u32, u: u32, v: u32) -> u32 {
-    let fv = topo.face_vertices(f as usize);
-    fv[0] ^ fv[1] ^ fv[2] ^ u ^ v
-}
-
-/// The face across edge `x` from face `f` (`None` on a boundary).
-#[inline]
-fn across(topo: &Topology, x: u32, f: u32) -> Option<u32> {
-    match topo.edge_faces(x as usize) {
-        &[g, h] => Some(if g == f { h } else { g }),
-        _ => None,
-    }
-}
-
-/// The ring vertices of the regular 8-point stencil of interior edge `e = (a, b)`, both ends
-/// interior of valence 6: `[r0_1, r0_2, r0_4, r0_5, r1_2, r1_4]` (ring of `a` from `b`, ring
-/// of `b` from `a`, counter-clockwise), or `None` if they are not 8 distinct vertices with
-/// the ends (the general path then merges repeated ones as the refiner does).
-#[inline]
-fn regular_stencil(topo: &Topology, e: usize, a: u32, b: u32, faces: &[u32]) -> Option<[u32; 6]> {
-    // f_left holds a→b, f_right holds b→a.
-    let corner = |f: u32| -> Option<usize> {
-        let fv = topo.face_vertices(f as usize);
-        (0..3).find(|&i| fv[i] == a && fv[(i + 1) % 3] == b)
-    };
-    let (fl, fr, il) = match (corner(faces[0]), corner(faces[1])) {
-        (Some(i), None) => (faces[0], faces[1], i),
-        (None, Some(i)) => (faces[1], faces[0], i),
-        _ => return None,
-    };
-    let fvl = topo.face_vertices(fl as usize);
-    let fel = topo.face_edges(fl as usize);
-    let ol = fvl[(il + 2) % 3];
-    let fvr = topo.face_vertices(fr as usize);
-    let fer = topo.face_edges(fr as usize);
-    let ir = (0..3).find(|&i| fvr[i] == b && fvr[(i + 1) % 3] == a)?;
-    let or = fvr[(ir + 2) % 3];
-    debug_assert_eq!(fel[il] as usize, e);
-    // Edges (a, o_L), (b, o_L) of f_left; (a, o_R), (b, o_R) of f_right.
-    let (a_ol, b_ol) = (fel[(il + 2) % 3], fel[(il + 1) % 3]);
-    let (a_or, b_or) = (fer[(ir + 1) % 3], fer[(ir + 2) % 3]);
-    let wing = |x: u32, f: u32, u: u32, v: u32| across(topo, x, f).map(|g| third(topo, g, u, v));
-    let r = [
-        ol,
-        wing(a_ol, fl, a, ol)?,
-        wing(a_or, fr, a, or)?,
-        or,
-        wing(b_or, fr, b, or)?,
-        wing(b_ol, fl, b, ol)?,
-    ];
-    let all = [a, b, r[0], r[1], r[2], r[3], r[4], r[5]];
-    for i in 1..8 {
-        if all[..i].contains(&all[i]) {
-            return None;
-        }
-    }
-    Some(r)
-}
-
 /// Scratch space of [`general_stencil`].
 #[derive(Default)]
 struct RingScratch {
@@ -415,7 +388,13 @@ struct RingScratch {
     ring_verts: [Vec<u32>; 2],
     m: EdgeMask,
     s: EdgeMask,
+    /// Masks of interior edges between interior ends, by valences (`ka · CACHED + kb`):
+    /// they depend on nothing else.
+    interior: Vec<Option<EdgeMask>>,
 }
+
+/// Valences below this have their interior masks cached.
+const CACHED: usize = 24;
 
 impl RingScratch {
     /// Adds `w · x` to the stencil, merging a repeated index (the refiner's builder).
@@ -514,8 +493,29 @@ fn general_stencil(topo: &Topology, e: usize, s: &mut RingScratch) {
         vertex_sharpness: 0.0,
         num_faces: topo.vertex_faces(ends[k] as usize).len(),
     });
-    ButterflyRules::default().edge_mask_with_rings(&n, &rings, &mut s.m, &mut s.s);
-    let m = std::mem::take(&mut s.m);
+    let (ka, kb) = (rings[0].valence(), rings[1].valence());
+    let interior = sharpness == 0.0
+        && faces.len() == 2
+        && ka < CACHED
+        && kb < CACHED
+        && rings.iter().all(|r| r.num_faces == r.valence())
+        && s.ring_sharp.iter().flatten().all(|&x| x == 0.0);
+    let slot = ka * CACHED + kb;
+    let cached = if interior {
+        if s.interior.is_empty() {
+            s.interior.resize(CACHED * CACHED, None);
+        }
+        s.interior[slot].take()
+    } else {
+        None
+    };
+    let m = match cached {
+        Some(m) => m,
+        None => {
+            ButterflyRules::default().edge_mask_with_rings(&n, &rings, &mut s.m, &mut s.s);
+            std::mem::take(&mut s.m)
+        }
+    };
     s.idx.clear();
     s.w.clear();
     for (&v, &w) in ends.iter().zip(&m.ends) {
@@ -544,7 +544,11 @@ fn general_stencil(topo: &Topology, e: usize, s: &mut RingScratch) {
             s.add(v, w);
         }
     }
-    s.m = m;
+    if interior {
+        s.interior[slot] = Some(m);
+    } else {
+        s.m = m;
+    }
 }
 
 #[cfg(test)]

@@ -556,7 +556,7 @@ impl<'h> TriangleWavelet<'h> {
     pub fn reconstruct_in_place(&self, data: &mut [DVec3]) -> Result<()> {
         let l = self.tables.len();
         Self::check_len("flat", l, data.len(), self.h.num_vertices(l))?;
-        let mut pred = Vec::new();
+        let (mut pred, mut normals) = (Vec::new(), Vec::new());
         for j in 0..l {
             let n = self.h.num_vertices(j + 1);
             let nc = self.h.num_vertices(j);
@@ -572,7 +572,8 @@ impl<'h> TriangleWavelet<'h> {
                     if !self.h.topology(j + 1).rings_ordered =>
                 {
                     let (even, odd) = data[..n].split_at_mut(nc);
-                    self.synthesize_local_in_place(j, even, odd, &mut pred, lifted);
+                    let scratch = (&mut pred, &mut normals);
+                    self.synthesize_local_in_place(j, even, odd, scratch, lifted);
                 }
                 _ => {
                     let (c, d) = data[..n].split_at(nc);
@@ -587,27 +588,56 @@ impl<'h> TriangleWavelet<'h> {
     /// One synthesis step of an interpolating wavelet with local frames, in place, bit for
     /// bit [`TriangleWavelet::synthesize_level`]: `even` holds the coarse signal, `odd` the
     /// details in local coordinates on entry; both hold level `level + 1` on return. `pred`
-    /// is scratch space (the predicted odd vertices). Needs an unordered fine level (the
+    /// and `normals` are scratch space (the predicted odd vertices, the normals of the
+    /// predicted fine faces). Needs an unordered fine level (the
     /// frames are computed from the coarse topology, [`coarse_frame`]).
     fn synthesize_local_in_place(
         &self,
         level: usize,
         even: &mut [DVec3],
         odd: &mut [DVec3],
-        pred: &mut Vec<DVec3>,
+        (pred, normals): (&mut Vec<DVec3>, &mut Vec<[DVec3; 4]>),
         lifted: bool,
     ) {
         let t = self.h.topology(level);
-        pred.clear();
-        pred.resize(odd.len(), DVec3::ZERO);
-        self.predict_odd(level, even, pred, 1.0);
+        let table = &self.tables[level];
+        let nc = even.len();
+        {
+            let even = &*even;
+            // The predicted odd vertices (`StencilTable::apply`'s sums, written once).
+            pred.clear();
+            pred.par_extend(
+                (nc..nc + odd.len())
+                    .into_par_iter()
+                    .with_min_len(ODD_CHUNK)
+                    .map(|r| {
+                        let (a, b) = (table.offsets[r] as usize, table.offsets[r + 1] as usize);
+                        let mut acc = DVec3::ZERO;
+                        for (&k, &w) in table.indices[a..b].iter().zip(&table.weights[a..b]) {
+                            acc += w * even[k as usize];
+                        }
+                        acc
+                    }),
+            );
+        }
         {
             let (even, pred) = (&*even, &pred[..]);
+            // The predicted fine faces' normals, once per face.
+            normals.clear();
+            normals.par_extend(
+                (0..t.num_faces())
+                    .into_par_iter()
+                    .with_min_len(ODD_CHUNK / 2)
+                    .map(|f| child_normals(t, even, pred, f)),
+            );
+            let normals = &normals[..];
             odd.par_chunks_mut(ODD_CHUNK)
                 .enumerate()
                 .for_each(|(c, out)| {
                     for (i, d) in out.iter_mut().enumerate() {
-                        *d = coarse_frame(t, even, pred, c * ODD_CHUNK + i).to_global(*d);
+                        let e = c * ODD_CHUNK + i;
+                        let f = frame_of_edge(t, even, pred, e, |f, c| normals[f][c]);
+                        *d = f.to_global(*d);
                     }
                 });
         }
@@ -692,27 +722,58 @@ impl<'h> TriangleWavelet<'h> {
     }
 }
 
-/// The local frame of the odd vertex of level-`j` edge `e` ([`odd_vertex_frames`]) from the
-/// coarse topology `t` alone: the predicted level `j + 1` is `even` (the coarse vertices, as
-/// the identity rows of the prediction give them, `0 + x`) then `odd`, and the fine faces
-/// around the odd vertex are the children (Maret eq. 5.7) of `e`'s faces that hold it, in
-/// fine face order (the order of an unordered fine topology's `vertex_faces`).
-fn coarse_frame(t: &Topology, even: &[DVec3], odd: &[DVec3], e: usize) -> Frame {
+/// The predicted position of vertex `v` of level `j + 1`: `even` (the coarse vertices, as the
+/// identity rows of the prediction give them, `0 + x`) then `odd`.
+#[inline]
+fn predicted(even: &[DVec3], odd: &[DVec3], v: u32) -> DVec3 {
+    let nc = even.len();
+    if (v as usize) < nc {
+        DVec3::ZERO + even[v as usize]
+    } else {
+        odd[v as usize - nc]
+    }
+}
+
+/// The Newell normals (as [`odd_vertex_frames`] sums them) of the four children (Maret eq.
+/// 5.7) of level-`j` triangle `f`, on the predicted level `j + 1` (`even`, `odd`).
+#[inline]
+fn child_normals(t: &Topology, even: &[DVec3], odd: &[DVec3], f: usize) -> [DVec3; 4] {
     let nc = even.len() as u32;
-    let pos = |v: u32| {
-        if v < nc {
-            DVec3::ZERO + even[v as usize]
-        } else {
-            odd[(v - nc) as usize]
-        }
-    };
-    let normal = |tri: [u32; 3]| {
+    let fv = t.face_vertices(f);
+    let fe = t.face_edges(f);
+    let m = [nc + fe[0], nc + fe[1], nc + fe[2]];
+    // Children (v0 m0 m2), (v1 m1 m0), (v2 m2 m1), (m0 m1 m2).
+    let p = |v: u32| predicted(even, odd, v);
+    let (p0, p1, p2) = (p(fv[0]), p(fv[1]), p(fv[2]));
+    let (q0, q1, q2) = (p(m[0]), p(m[1]), p(m[2]));
+    let newell = |a: DVec3, b: DVec3, c: DVec3| {
         let mut n = DVec3::ZERO;
-        for i in 0..3 {
-            n += pos(tri[i]).cross(pos(tri[(i + 1) % 3]));
-        }
+        n += a.cross(b);
+        n += b.cross(c);
+        n += c.cross(a);
         n
     };
+    [
+        newell(p0, q0, q2),
+        newell(p1, q1, q0),
+        newell(p2, q2, q1),
+        newell(q0, q1, q2),
+    ]
+}
+
+/// The local frame of the odd vertex of level-`j` edge `e` ([`odd_vertex_frames`]) from the
+/// coarse topology `t` alone, with `normal(f, c)` the normal of child `c` of triangle `f`
+/// ([`child_normals`]): the fine faces around the odd vertex are the children of `e`'s faces
+/// that hold it, summed in fine face order (the order of an unordered fine topology's
+/// `vertex_faces`).
+#[inline]
+fn frame_of_edge(
+    t: &Topology,
+    even: &[DVec3],
+    odd: &[DVec3],
+    e: usize,
+    normal: impl Fn(usize, usize) -> DVec3,
+) -> Frame {
     let mut faces = [0u32; 2];
     let ef = t.edge_faces(e);
     let k = ef.len().min(2);
@@ -722,26 +783,26 @@ fn coarse_frame(t: &Topology, even: &[DVec3], odd: &[DVec3], e: usize) -> Frame 
     }
     let mut n = DVec3::ZERO;
     for &f in &faces[..k] {
-        let fv = t.face_vertices(f as usize);
-        let fe = t.face_edges(f as usize);
-        let m = [nc + fe[0], nc + fe[1], nc + fe[2]];
-        let kids = [
-            [fv[0], m[0], m[2]],
-            [fv[1], m[1], m[0]],
-            [fv[2], m[2], m[1]],
-            [m[0], m[1], m[2]],
-        ];
-        let which = match fe.iter().position(|&x| x as usize == e) {
+        let which = match t
+            .face_edges(f as usize)
+            .iter()
+            .position(|&x| x as usize == e)
+        {
             Some(0) => [0, 1, 3],
             Some(1) => [1, 2, 3],
             _ => [0, 2, 3],
         };
         for c in which {
-            n += normal(kids[c]);
+            n += normal(f as usize, c);
         }
     }
     let [a, b] = t.edge_vertices[e];
-    Frame::new(n, pos(b) - pos(a))
+    Frame::new(n, predicted(even, odd, b) - predicted(even, odd, a))
+}
+
+/// [`frame_of_edge`] computing the child normals on the way.
+fn coarse_frame(t: &Topology, even: &[DVec3], odd: &[DVec3], e: usize) -> Frame {
+    frame_of_edge(t, even, odd, e, |f, c| child_normals(t, even, odd, f)[c])
 }
 
 fn check_tables(h: &Hierarchy, tables: &[StencilTable]) -> Result<()> {
