@@ -229,16 +229,23 @@ pub fn remesh_with_progress(
 
     // 2. Simplify with parameter tracking.
     let t = Instant::now();
-    let mut s = simplify::simplify(
-        &pos,
-        &tris,
-        &features,
-        opts.base_faces,
-        opts.sharp_angle,
-        &mut |f| progress("simplify", f),
-    );
+    // The (serial) simplification and the input's BVH side by side (the progress callback
+    // is not `Send`: the simplification stays on this thread).
+    let (mut s, proj) = std::thread::scope(|scope| {
+        let bvh = scope.spawn(|| resample::Projector::new(&pos, &tris));
+        let s = simplify::simplify(
+            &pos,
+            &tris,
+            &features,
+            opts.base_faces,
+            opts.sharp_angle,
+            &mut |f| progress("simplify", f),
+        );
+        let proj = bvh.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+        (s, proj)
+    });
+    let proj = proj?;
     let base_tri = Mesh::from_triangles(s.positions.clone(), &s.triangles);
-    let proj = resample::Projector::new(&pos, &tris)?;
     timings.simplify_ms = ms(t);
 
     // 3. Parameterization.

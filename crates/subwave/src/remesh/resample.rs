@@ -159,22 +159,45 @@ impl Projector {
                 }
             }
         }
-        let Some((q, d2, t)) = best else {
+        let Some((mut q, mut d2, mut t)) = best else {
             return self.closest(p);
         };
+        // Walk on the surface to a local minimum: a tight bound for the search.
+        if let Some((qw, tw)) = self.closest_local(p, t) {
+            let dw = qw.distance_squared(p);
+            if dw < d2 {
+                (q, d2, t) = (qw, dw, tw);
+            }
+        }
         if !d2.is_finite() {
             return self.closest(p);
         }
-        match self
-            .shape
-            .project_local_point_and_get_location_with_max_dist(
-                parry3d_f64::math::Vector::new(p.x, p.y, p.z),
-                false,
-                d2.sqrt(),
-            ) {
-            Some((proj, (tri, _))) => (DVec3::new(proj.point.x, proj.point.y, proj.point.z), tri),
+        match self.search(p, d2) {
+            Some((qs, _, ts)) => (qs, ts),
             None => (q, t),
         }
+    }
+
+    /// The input triangle closest to `p` among those closer than `sqrt(max_d2)` (BVH
+    /// best-first search on squared distances), with the point and its squared distance.
+    fn search(&self, p: DVec3, max_d2: f64) -> Option<(DVec3, f64, u32)> {
+        self.shape
+            .bvh()
+            .find_best(
+                max_d2,
+                |node, _| {
+                    let (mn, mx) = (node.mins(), node.maxs());
+                    let dx = (mn.x - p.x).max(p.x - mx.x).max(0.0);
+                    let dy = (mn.y - p.y).max(p.y - mx.y).max(0.0);
+                    let dz = (mn.z - p.z).max(p.z - mx.z).max(0.0);
+                    dx * dx + dy * dy + dz * dz
+                },
+                |prim, _| {
+                    let (q, d2) = self.on_triangle(p, prim)?;
+                    Some((d2, q))
+                },
+            )
+            .map(|(t, (d2, q))| (q, d2, t))
     }
 
     /// The closest input point to `p` and its triangle.
@@ -443,9 +466,7 @@ pub fn relax(
                 let d = c - p;
                 let t = d - d.dot(n) * n;
                 let moved = p + step * t;
-                // The local walk's triangle bounds the exact search tightly.
-                let near = proj.closest_local(moved, hint[v]).map_or(hint[v], |x| x.1);
-                let (q, tri) = proj.closest_near(moved, &[near, hint[v]]);
+                let (q, tri) = proj.closest_near(moved, &[hint[v]]);
                 let mut ok =
                     proj.normals[tri as usize].dot(n) > 0.3 && q.distance(moved) < 0.5 * len;
                 // No incident face may turn over (its normal stays within 90° of the old one
