@@ -32,7 +32,8 @@ pub struct Quality {
 /// The smallest corner angle of a polygon (degrees); 0 for a zero-length edge.
 pub fn min_angle(fv: &[u32], pos: &[DVec3]) -> f64 {
     let n = fv.len();
-    let mut m = 180.0f64;
+    // The smallest angle has the largest cosine (one `acos` per face).
+    let mut max_cos = f64::NEG_INFINITY;
     for i in 0..n {
         let p = pos[fv[i] as usize];
         let a = pos[fv[(i + 1) % n] as usize] - p;
@@ -41,10 +42,12 @@ pub fn min_angle(fv: &[u32], pos: &[DVec3]) -> f64 {
         if la <= 0.0 || lb <= 0.0 {
             return 0.0;
         }
-        let c = (a.dot(b) / (la * lb)).clamp(-1.0, 1.0);
-        m = m.min(c.acos().to_degrees());
+        max_cos = max_cos.max((a.dot(b) / (la * lb)).clamp(-1.0, 1.0));
     }
-    m
+    if n == 0 {
+        return 180.0;
+    }
+    max_cos.acos().to_degrees().min(180.0)
 }
 
 /// The quality of `mesh` against the input surface behind `proj`.
