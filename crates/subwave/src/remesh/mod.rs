@@ -447,13 +447,21 @@ pub fn remesh_with_progress(
                 }
             })
             .collect();
+        let relaxed_ms = ms(t);
         resample::untangle(&mut fine, &mut hints, topo, &pinned, &proj, 6);
+        let untangled_ms = ms(t);
         // Final guarded projection of every free vertex onto its closest input point (a
         // relaxation step of length zero), then untangling again.
         resample::relax(&mut fine, &mut hints, topo, &pinned, &proj, 1, 0.0);
         let (left, opposed) =
             resample::untangle_counts(&mut fine, &mut hints, topo, &pinned, &proj, 12);
         flipped_after = Some(opposed);
+        tracing::debug!(
+            relaxed_ms,
+            untangled_ms,
+            total_ms = ms(t),
+            "relaxation stage times (cumulative)"
+        );
         if tracing::enabled!(tracing::Level::DEBUG) {
             let flips = resample::flipped_faces(topo, &fine, &hints, &proj);
             let nbv = h.base.positions.len() as u32;
