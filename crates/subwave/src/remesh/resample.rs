@@ -565,17 +565,26 @@ fn flips_around(
         if n.dot(proj.normals[tri as usize]) <= 0.0 {
             count += 1;
         }
+        // The smallest angle has the largest cosine (one `acos` per face).
+        let mut max_cos = f64::NEG_INFINITY;
         for i in 0..m {
             let a = q((i + 1) % m) - q(i);
             let b = q((i + m - 1) % m) - q(i);
             let (la, lb) = (a.length(), b.length());
-            let ang = if la > 0.0 && lb > 0.0 {
-                (a.dot(b) / (la * lb)).clamp(-1.0, 1.0).acos().to_degrees()
+            if la > 0.0 && lb > 0.0 {
+                max_cos = max_cos.max((a.dot(b) / (la * lb)).clamp(-1.0, 1.0));
             } else {
-                0.0
-            };
-            min_angle = min_angle.min(ang);
+                max_cos = f64::INFINITY;
+            }
         }
+        let ang = if max_cos == f64::INFINITY {
+            0.0
+        } else if max_cos == f64::NEG_INFINITY {
+            180.0
+        } else {
+            max_cos.acos().to_degrees()
+        };
+        min_angle = min_angle.min(ang);
     }
     (count, min_angle)
 }
