@@ -117,7 +117,22 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     };
     let prepared = crate::progress::with_bar("remesh", false, |cb| prepare(&mesh, &popts, cb))
         .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let prepare_ms = t0.elapsed().as_secs_f64() * 1e3;
     let remeshed = prepared.remeshed.is_some();
+    // Stage times of the remesh (and the normal re-sampling after it), for the final line.
+    let stages = prepared.remeshed.as_ref().map(|r| {
+        let t = &r.timings;
+        format!(
+            "remesh {:.0} ms (prepare {:.0}, simplify {:.0}, parameterize {:.0}, resample {:.0}, relax {:.0}), normal {:.0} ms, ",
+            t.total_ms,
+            t.prepare_ms,
+            t.simplify_ms,
+            t.parameterize_ms,
+            t.resample_ms,
+            t.relax_ms,
+            prepare_ms - t.total_ms
+        )
+    });
     if let Some(r) = &prepared.remeshed {
         for w in &r.warnings {
             tracing::warn!("{name}: {w}");
@@ -163,7 +178,9 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
         opts.bits = 12;
     }
     opts.input_vertices = Some(input_vertices as u32);
+    let t_code = Instant::now();
     let bytes = encode(&h, &opts).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let code_ms = t_code.elapsed().as_secs_f64() * 1e3;
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     std::fs::write(&args.output, &bytes)
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.output.display()))?;
@@ -202,6 +219,9 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
         info.base_bytes,
         ms
     )?;
+    if let Some(stages) = stages {
+        writeln!(out, "  {stages}coding {code_ms:.0} ms")?;
+    }
     out.flush()?;
     Ok(())
 }

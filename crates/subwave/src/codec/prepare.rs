@@ -10,7 +10,7 @@
 use crate::codec::progressive::{EncodeOptions, Wavelet};
 use crate::hierarchy::Hierarchy;
 use crate::mesh::Mesh;
-use crate::remesh::normal::{normal_resample, NormalOptions, NormalStats};
+use crate::remesh::normal::{normal_resample_on, NormalOptions, NormalStats, NormalSurface};
 use crate::remesh::{remesh_with_progress, RemeshOptions, Remeshed};
 use crate::{Error, Result};
 
@@ -133,20 +133,28 @@ pub fn prepare(
         repair: true,
         ..RemeshOptions::default()
     };
-    let mut r = remesh_with_progress(mesh, &ro, progress)?;
+    let run_normal = opts.normal.unwrap_or(opts.sharp_angle.is_none()) && !opts.quads;
+    // The normal re-sampling's index of the input is built beside the remesh.
+    let (r, surface) = std::thread::scope(|scope| {
+        let surface = run_normal.then(|| {
+            scope.spawn(|| {
+                let tris: Vec<[u32; 3]> = mesh
+                    .faces()
+                    .flat_map(|f| (2..f.len()).map(move |k| [f[0], f[k - 1], f[k]]))
+                    .collect();
+                NormalSurface::new(&mesh.positions, &tris)
+            })
+        });
+        let r = remesh_with_progress(mesh, &ro, progress);
+        let surface = surface.map(|s| s.join().unwrap_or_else(|e| std::panic::resume_unwind(e)));
+        (r, surface)
+    });
+    let mut r = r?;
     let mut normal = None;
-    if opts.normal.unwrap_or(opts.sharp_angle.is_none()) && !opts.quads {
+    if let Some(surface) = surface {
+        let surface = surface?;
         progress("normal", 0.0);
-        let tris: Vec<[u32; 3]> = mesh
-            .faces()
-            .flat_map(|f| (2..f.len()).map(move |k| [f[0], f[k - 1], f[k]]))
-            .collect();
-        let stats = normal_resample(
-            &mut r.hierarchy,
-            &mesh.positions,
-            &tris,
-            &NormalOptions::default(),
-        )?;
+        let stats = normal_resample_on(&mut r.hierarchy, &surface, &NormalOptions::default())?;
         r.mesh.positions.clone_from(&r.hierarchy.positions);
         normal = Some(stats);
         progress("normal", 1.0);

@@ -229,16 +229,23 @@ pub fn remesh_with_progress(
 
     // 2. Simplify with parameter tracking.
     let t = Instant::now();
-    let mut s = simplify::simplify(
-        &pos,
-        &tris,
-        &features,
-        opts.base_faces,
-        opts.sharp_angle,
-        &mut |f| progress("simplify", f),
-    );
+    // The (serial) simplification and the input's BVH side by side (the progress callback
+    // is not `Send`: the simplification stays on this thread).
+    let (mut s, proj) = std::thread::scope(|scope| {
+        let bvh = scope.spawn(|| resample::Projector::new(&pos, &tris));
+        let s = simplify::simplify(
+            &pos,
+            &tris,
+            &features,
+            opts.base_faces,
+            opts.sharp_angle,
+            &mut |f| progress("simplify", f),
+        );
+        let proj = bvh.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+        (s, proj)
+    });
+    let proj = proj?;
     let base_tri = Mesh::from_triangles(s.positions.clone(), &s.triangles);
-    let proj = resample::Projector::new(&pos, &tris)?;
     timings.simplify_ms = ms(t);
 
     // 3. Parameterization.
@@ -324,19 +331,21 @@ pub fn remesh_with_progress(
         chain_edges = s.chain_edges.len(),
         "parameterization"
     );
-    let mut fine: Vec<DVec3> = located
+    // Each vertex's position and an input triangle near it (the hint of the closest-point
+    // queries below).
+    let (mut fine, mut hints): (Vec<DVec3>, Vec<u32>) = located
         .par_iter()
         .zip(&params)
         .map(|(l, p)| match map.point(l) {
-            Some(q) if l.inside >= -0.02 => q,
+            Some(q) if l.inside >= -0.02 => (q, l.tri),
             _ => {
                 // Outside every image: the closest input point of the base-surface point.
                 let t = s.triangles[p.face as usize];
                 let b: DVec3 = (0..3).map(|k| s.positions[t[k] as usize] * p.bary[k]).sum();
-                proj.closest(b).0
+                proj.closest_near(b, &[l.tri])
             }
         })
-        .collect();
+        .unzip();
     // Base vertices are input vertices; vertices on boundary and feature base edges follow
     // the input's chain between them (1D parameterization along the chain).
     let chains = chain_polylines(&s, &pos);
@@ -391,6 +400,8 @@ pub fn remesh_with_progress(
     }
     timings.resample_ms = ms(t);
     let t = Instant::now();
+    // Faces flipped against the input (quality measure), when untangling counted them.
+    let mut flipped_after = None;
     if use_shrinkwrap {
         if opts.method == MethodChoice::Auto {
             warnings.push(format!(
@@ -399,6 +410,7 @@ pub fn remesh_with_progress(
         }
         method = Method::ShrinkWrap;
         let nb = h.base.positions.len();
+        hints.fill(u32::MAX);
         fine = shrinkwrap::shrinkwrap(
             &h,
             &fixed[..nb],
@@ -409,7 +421,15 @@ pub fn remesh_with_progress(
     } else {
         progress("relax", 0.0);
         let topo = &h.topologies[opts.levels as usize];
-        resample::relax(&mut fine, topo, &fixed, &proj, opts.relax_iterations, 0.5);
+        resample::relax(
+            &mut fine,
+            &mut hints,
+            topo,
+            &fixed,
+            &proj,
+            opts.relax_iterations,
+            0.5,
+        );
         // Untangling may also slide base vertices that are not on a boundary or feature
         // chain (they are not corners of any curve) tangentially on the input.
         let mut on_chain = vec![false; s.positions.len()];
@@ -427,13 +447,23 @@ pub fn remesh_with_progress(
                 }
             })
             .collect();
-        resample::untangle(&mut fine, topo, &pinned, &proj, 6);
+        let relaxed_ms = ms(t);
+        resample::untangle(&mut fine, &mut hints, topo, &pinned, &proj, 6);
+        let untangled_ms = ms(t);
         // Final guarded projection of every free vertex onto its closest input point (a
         // relaxation step of length zero), then untangling again.
-        resample::relax(&mut fine, topo, &pinned, &proj, 1, 0.0);
-        let left = resample::untangle(&mut fine, topo, &pinned, &proj, 12);
+        resample::relax(&mut fine, &mut hints, topo, &pinned, &proj, 1, 0.0);
+        let (left, opposed) =
+            resample::untangle_counts(&mut fine, &mut hints, topo, &pinned, &proj, 12);
+        flipped_after = Some(opposed);
+        tracing::debug!(
+            relaxed_ms,
+            untangled_ms,
+            total_ms = ms(t),
+            "relaxation stage times (cumulative)"
+        );
         if tracing::enabled!(tracing::Level::DEBUG) {
-            let flips = resample::flipped_faces(topo, &fine, &proj);
+            let flips = resample::flipped_faces(topo, &fine, &hints, &proj);
             let nbv = h.base.positions.len() as u32;
             let mut at_base = 0;
             let mut at_fixed = 0;
@@ -467,7 +497,10 @@ pub fn remesh_with_progress(
     let out = h.finest_mesh();
     let base = h.base.clone();
     progress("quality", 0.0);
-    let quality = quality::measure(&out, &proj);
+    let quality = match flipped_after {
+        Some(flipped) => quality::measure_with_flipped(&out, flipped),
+        None => quality::measure_near(&out, &proj, &hints),
+    };
     progress("quality", 1.0);
     timings.total_ms = ms(t_all);
     Ok(Remeshed {

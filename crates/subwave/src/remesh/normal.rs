@@ -115,38 +115,75 @@ pub fn normal_resample(
             "normal remeshing needs a triangle hierarchy (not --quads)".to_string(),
         ));
     }
-    if input_tris.is_empty() {
+    let surface = NormalSurface::new(input_pos, input_tris)?;
+    normal_resample_on(h, &surface, opts)
+}
+
+/// The input surface of [`normal_resample_on`]: its triangles' BVH and oriented normals
+/// (built once, e.g. while the remesh runs).
+pub struct NormalSurface {
+    surface: Surface,
+}
+
+impl NormalSurface {
+    /// Indexes the surface `input_pos` / `input_tris`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] if an input triangle names a vertex that does not exist,
+    /// or if the input has no triangles.
+    pub fn new(input_pos: &[DVec3], input_tris: &[[u32; 3]]) -> Result<NormalSurface> {
+        if input_tris.is_empty() {
+            return Err(Error::InvalidArgument(
+                "normal remeshing: the input has no triangles".to_string(),
+            ));
+        }
+        if let Some((k, t)) = input_tris
+            .iter()
+            .enumerate()
+            .find(|(_, t)| t.iter().any(|&i| i as usize >= input_pos.len()))
+        {
+            return Err(Error::InvalidArgument(format!(
+                "normal remeshing: input triangle {k} names vertex {} of {}",
+                t.iter().max().copied().unwrap_or(0),
+                input_pos.len()
+            )));
+        }
+        let normals = input_tris
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| input_pos[i as usize]);
+                (b - a).cross(c - a).normalize_or_zero()
+            })
+            .collect();
+        let shape = TriMesh::new(
+            input_pos
+                .iter()
+                .map(|p| parry3d_f64::math::Vector::new(p.x, p.y, p.z))
+                .collect(),
+            input_tris.to_vec(),
+        )
+        .map_err(|e| Error::InvalidArgument(format!("cannot index the input triangles: {e:?}")))?;
+        Ok(NormalSurface {
+            surface: Surface { shape, normals },
+        })
+    }
+}
+
+/// [`normal_resample`] on an indexed input surface.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] if `h` is not a triangle hierarchy.
+pub fn normal_resample_on(
+    h: &mut Hierarchy,
+    surface: &NormalSurface,
+    opts: &NormalOptions,
+) -> Result<NormalStats> {
+    if h.split != Split::Triangles {
         return Err(Error::InvalidArgument(
-            "normal remeshing: the input has no triangles".to_string(),
+            "normal remeshing needs a triangle hierarchy (not --quads)".to_string(),
         ));
     }
-    if let Some((k, t)) = input_tris
-        .iter()
-        .enumerate()
-        .find(|(_, t)| t.iter().any(|&i| i as usize >= input_pos.len()))
-    {
-        return Err(Error::InvalidArgument(format!(
-            "normal remeshing: input triangle {k} names vertex {} of {}",
-            t.iter().max().copied().unwrap_or(0),
-            input_pos.len()
-        )));
-    }
-    let normals = input_tris
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|i| input_pos[i as usize]);
-            (b - a).cross(c - a).normalize_or_zero()
-        })
-        .collect();
-    let shape = TriMesh::new(
-        input_pos
-            .iter()
-            .map(|p| parry3d_f64::math::Vector::new(p.x, p.y, p.z))
-            .collect(),
-        input_tris.to_vec(),
-    )
-    .map_err(|e| Error::InvalidArgument(format!("cannot index the input triangles: {e:?}")))?;
-    let surface = Surface { shape, normals };
+    let surface = &surface.surface;
     let levels = h.levels();
     let features = feature_edges(&h.topologies);
     let mut stats = NormalStats::default();

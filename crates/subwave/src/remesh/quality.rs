@@ -32,7 +32,8 @@ pub struct Quality {
 /// The smallest corner angle of a polygon (degrees); 0 for a zero-length edge.
 pub fn min_angle(fv: &[u32], pos: &[DVec3]) -> f64 {
     let n = fv.len();
-    let mut m = 180.0f64;
+    // The smallest angle has the largest cosine (one `acos` per face).
+    let mut max_cos = f64::NEG_INFINITY;
     for i in 0..n {
         let p = pos[fv[i] as usize];
         let a = pos[fv[(i + 1) % n] as usize] - p;
@@ -41,14 +42,45 @@ pub fn min_angle(fv: &[u32], pos: &[DVec3]) -> f64 {
         if la <= 0.0 || lb <= 0.0 {
             return 0.0;
         }
-        let c = (a.dot(b) / (la * lb)).clamp(-1.0, 1.0);
-        m = m.min(c.acos().to_degrees());
+        max_cos = max_cos.max((a.dot(b) / (la * lb)).clamp(-1.0, 1.0));
     }
-    m
+    if n == 0 {
+        return 180.0;
+    }
+    max_cos.acos().to_degrees().min(180.0)
 }
 
 /// The quality of `mesh` against the input surface behind `proj`.
 pub fn measure(mesh: &Mesh, proj: &Projector) -> Quality {
+    measure_near(mesh, proj, &[])
+}
+
+/// [`measure`] with the number of flipped faces already known (as
+/// [`super::resample::untangle_counts`] finds it): only the angles are measured.
+pub fn measure_with_flipped(mesh: &Mesh, flipped: usize) -> Quality {
+    let pos = &mesh.positions;
+    let per_face: Vec<(f64, bool)> = (0..mesh.num_faces())
+        .into_par_iter()
+        .map(|f| {
+            let fv = mesh.face(f);
+            let a = min_angle(fv, pos);
+            let degenerate = a < DEGENERATE_DEGREES || face_normal(fv, pos).length_squared() == 0.0;
+            (a, degenerate)
+        })
+        .collect();
+    let nf = per_face.len().max(1) as f64;
+    Quality {
+        min_angle: per_face.iter().map(|x| x.0).fold(180.0, f64::min),
+        mean_angle: per_face.iter().map(|x| x.0).sum::<f64>() / nf,
+        flipped,
+        degenerate: per_face.iter().filter(|x| x.1).count(),
+    }
+}
+
+/// [`measure`] with `hints[v]`, an input triangle near vertex `v` (`u32::MAX` or missing
+/// entries: unknown), which speeds up the closest-point queries
+/// ([`Projector::closest_near`]) without changing their answers.
+pub fn measure_near(mesh: &Mesh, proj: &Projector, hints: &[u32]) -> Quality {
     let pos = &mesh.positions;
     let per_face: Vec<(f64, bool, bool)> = (0..mesh.num_faces())
         .into_par_iter()
@@ -57,7 +89,11 @@ pub fn measure(mesh: &Mesh, proj: &Projector) -> Quality {
             let a = min_angle(fv, pos);
             let n = face_normal(fv, pos);
             let c = fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64;
-            let (_, tri) = proj.closest(c);
+            let mut h = [u32::MAX; 4];
+            for (i, &v) in fv.iter().take(4).enumerate() {
+                h[i] = hints.get(v as usize).copied().unwrap_or(u32::MAX);
+            }
+            let (_, tri) = proj.closest_near(c, &h);
             let flipped = n.dot(proj.normals[tri as usize]) < 0.0;
             let degenerate = a < DEGENERATE_DEGREES || n.length_squared() == 0.0;
             (a, flipped, degenerate)

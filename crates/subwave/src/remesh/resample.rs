@@ -30,6 +30,11 @@ use crate::{Error, Result};
 /// Closest points on the input with the triangle hit.
 pub struct Projector {
     shape: TriMesh,
+    pos: Vec<DVec3>,
+    tris: Vec<[u32; 3]>,
+    /// Triangles around each input vertex (CSR: `fan[fan_start[v]..fan_start[v + 1]]`).
+    fan_start: Vec<u32>,
+    fan: Vec<u32>,
     /// Unit normal of each input triangle.
     pub normals: Vec<DVec3>,
 }
@@ -53,7 +58,146 @@ impl Projector {
             .collect();
         let shape = TriMesh::new(vertices, tris.to_vec())
             .map_err(|e| Error::InvalidArgument(format!("cannot index the triangles: {e:?}")))?;
-        Ok(Projector { shape, normals })
+        let mut fan_start = vec![0u32; pos.len() + 1];
+        for t in tris {
+            for &i in t {
+                fan_start[i as usize + 1] += 1;
+            }
+        }
+        for i in 0..pos.len() {
+            fan_start[i + 1] += fan_start[i];
+        }
+        let mut fill = fan_start.clone();
+        let mut fan = vec![0u32; 3 * tris.len()];
+        for (k, t) in tris.iter().enumerate() {
+            for &i in t {
+                fan[fill[i as usize] as usize] = k as u32;
+                fill[i as usize] += 1;
+            }
+        }
+        Ok(Projector {
+            shape,
+            pos: pos.to_vec(),
+            tris: tris.to_vec(),
+            fan_start,
+            fan,
+            normals,
+        })
+    }
+
+    /// A *local* closest input point to `p`: starting from input triangle `start`, walks
+    /// to the neighbouring triangle across the edge or vertex where the current closest point
+    /// lies as long as that gets closer, so it stays on the sheet of the input around
+    /// `start` (a local minimum of the distance over the surface, which is the global one
+    /// unless another part of the input comes closer). `None` if `start` is not an input
+    /// triangle or the walk does not settle within 64 steps.
+    pub fn closest_local(&self, p: DVec3, start: u32) -> Option<(DVec3, u32)> {
+        let tri = |t: u32| -> Option<(DVec3, f64, Region)> {
+            let [a, b, c] = self.tris.get(t as usize)?.map(|i| self.pos[i as usize]);
+            let (q, r) = closest_on_triangle_region(p, a, b, c);
+            Some((q, q.distance_squared(p), r))
+        };
+        let mut cur = start;
+        let (mut q, mut d2, mut region) = tri(cur)?;
+        if !d2.is_finite() {
+            return None;
+        }
+        for _ in 0..64 {
+            let t = self.tris[cur as usize];
+            // The corners whose fans are searched, and a vertex the next triangle must have.
+            let (corners, n, other) = match region {
+                Region::Face => return Some((q, cur)),
+                Region::Vertex(k) => ([k, 0, 0], 1, None),
+                Region::Edge(i, j) => ([i, 0, 0], 1, Some(t[j])),
+                Region::Degenerate => ([0, 1, 2], 3, None),
+            };
+            let mut next: Option<(u32, DVec3, f64, Region)> = None;
+            for &k in &corners[..n] {
+                let v = t[k] as usize;
+                for &u in &self.fan[self.fan_start[v] as usize..self.fan_start[v + 1] as usize] {
+                    if u == cur || other.is_some_and(|w| !self.tris[u as usize].contains(&w)) {
+                        continue;
+                    }
+                    let (qu, du, ru) = tri(u)?;
+                    if du < next.map_or(d2, |n| n.2) {
+                        next = Some((u, qu, du, ru));
+                    }
+                }
+            }
+            match next {
+                Some((u, qu, du, ru)) if du < d2 => {
+                    (cur, q, d2, region) = (u, qu, du, ru);
+                }
+                _ => return Some((q, cur)),
+            }
+        }
+        None
+    }
+
+    /// The closest point of input triangle `t` to `p` and its squared distance (`None` if
+    /// `t` is not an input triangle).
+    fn on_triangle(&self, p: DVec3, t: u32) -> Option<(DVec3, f64)> {
+        let [a, b, c] = self.tris.get(t as usize)?.map(|i| self.pos[i as usize]);
+        let q = closest_on_triangle(p, a, b, c);
+        Some((q, q.distance_squared(p)))
+    }
+
+    /// The closest input point to `p` and its triangle, like [`Projector::closest`], using
+    /// input triangles `hints` known to be near `p` (any of them; `u32::MAX` or out-of-range
+    /// entries are ignored): the nearest of them bounds the BVH search, which then only
+    /// visits the few nodes closer than it. The same point as [`Projector::closest`] up to
+    /// rounding (on a tie between triangles, the hinted one).
+    pub fn closest_near(&self, p: DVec3, hints: &[u32]) -> (DVec3, u32) {
+        let mut best: Option<(DVec3, f64, u32)> = None;
+        for &t in hints {
+            if best.is_some_and(|b| b.2 == t) {
+                continue;
+            }
+            if let Some((q, d2)) = self.on_triangle(p, t) {
+                if best.is_none_or(|b| d2 < b.1) {
+                    best = Some((q, d2, t));
+                }
+            }
+        }
+        let Some((mut q, mut d2, mut t)) = best else {
+            return self.closest(p);
+        };
+        // Walk on the surface to a local minimum: a tight bound for the search.
+        if let Some((qw, tw)) = self.closest_local(p, t) {
+            let dw = qw.distance_squared(p);
+            if dw < d2 {
+                (q, d2, t) = (qw, dw, tw);
+            }
+        }
+        if !d2.is_finite() {
+            return self.closest(p);
+        }
+        match self.search(p, d2) {
+            Some((qs, _, ts)) => (qs, ts),
+            None => (q, t),
+        }
+    }
+
+    /// The input triangle closest to `p` among those closer than `sqrt(max_d2)` (BVH
+    /// best-first search on squared distances), with the point and its squared distance.
+    fn search(&self, p: DVec3, max_d2: f64) -> Option<(DVec3, f64, u32)> {
+        self.shape
+            .bvh()
+            .find_best(
+                max_d2,
+                |node, _| {
+                    let (mn, mx) = (node.mins(), node.maxs());
+                    let dx = (mn.x - p.x).max(p.x - mx.x).max(0.0);
+                    let dy = (mn.y - p.y).max(p.y - mx.y).max(0.0);
+                    let dz = (mn.z - p.z).max(p.z - mx.z).max(0.0);
+                    dx * dx + dy * dy + dz * dz
+                },
+                |prim, _| {
+                    let (q, d2) = self.on_triangle(p, prim)?;
+                    Some((d2, q))
+                },
+            )
+            .map(|(t, (d2, q))| (q, d2, t))
     }
 
     /// The closest input point to `p` and its triangle.
@@ -64,6 +208,81 @@ impl Projector {
         );
         (DVec3::new(proj.point.x, proj.point.y, proj.point.z), tri)
     }
+}
+
+/// Where on a triangle its closest point to a query lies (corner indices 0, 1, 2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Region {
+    Face,
+    Vertex(usize),
+    Edge(usize, usize),
+    Degenerate,
+}
+
+/// The closest point of triangle `abc` to `p` (Ericson, "Real-Time Collision Detection",
+/// §5.1.5: Voronoi regions of the vertices, edges and face).
+pub fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    closest_on_triangle_region(p, a, b, c).0
+}
+
+/// [`closest_on_triangle`] and the Voronoi region the point lies in.
+fn closest_on_triangle_region(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVec3, Region) {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return (a, Region::Vertex(0));
+    }
+    let bp = p - b;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return (b, Region::Vertex(1));
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return (a + v * ab, Region::Edge(0, 1));
+    }
+    let cp = p - c;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return (c, Region::Vertex(2));
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return (a + w * ac, Region::Edge(0, 2));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return (b + w * (c - b), Region::Edge(1, 2));
+    }
+    let denom = va + vb + vc;
+    if denom == 0.0 || !denom.is_finite() {
+        // Degenerate triangle: the nearest of its vertices and edges.
+        let seg = |x: DVec3, y: DVec3| {
+            let d = y - x;
+            let l = d.length_squared();
+            let t = if l > 0.0 {
+                ((p - x).dot(d) / l).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            x + t * d
+        };
+        let q = [seg(a, b), seg(b, c), seg(c, a)]
+            .into_iter()
+            .min_by(|x, y| x.distance_squared(p).total_cmp(&y.distance_squared(p)))
+            .unwrap_or(a);
+        return (q, Region::Degenerate);
+    }
+    let inv = 1.0 / denom;
+    (a + ab * (vb * inv) + ac * (vc * inv), Region::Face)
 }
 
 /// Corners of the children of a triangle with corner parameters `c` (Maret eq. 5.7 order).
@@ -194,11 +413,23 @@ pub fn face_normal(fv: &[u32], pos: &[DVec3]) -> DVec3 {
     n
 }
 
+/// Input triangles near the vertices of a face (the hints of its vertices, for
+/// [`Projector::closest_near`]).
+fn face_hints(fv: &[u32], hints: &[u32]) -> [u32; 4] {
+    let mut h = [u32::MAX; 4];
+    for (i, &v) in fv.iter().take(4).enumerate() {
+        h[i] = hints.get(v as usize).copied().unwrap_or(u32::MAX);
+    }
+    h
+}
+
 /// Tangential relaxation with guarded re-projection (see the module documentation);
-/// `fixed` vertices do not move. Returns the number of rejected projections in the last
-/// iteration.
+/// `fixed` vertices do not move. `hints[v]` is an input triangle near vertex `v`
+/// (`u32::MAX`: unknown; same length as `pos`), updated to the triangle each moved vertex
+/// lands on. Returns the number of rejected projections in the last iteration.
 pub fn relax(
     pos: &mut [DVec3],
+    hints: &mut [u32],
     topo: &Topology,
     fixed: &[bool],
     proj: &Projector,
@@ -209,16 +440,17 @@ pub fn relax(
     for _ in 0..iterations {
         let normals = vertex_normals(topo, pos);
         let cur: &[DVec3] = pos;
-        let next: Vec<(DVec3, bool)> = (0..cur.len())
+        let hint: &[u32] = hints;
+        let next: Vec<(DVec3, u32, bool)> = (0..cur.len())
             .into_par_iter()
             .map(|v| {
                 let p = cur[v];
                 if fixed[v] {
-                    return (p, true);
+                    return (p, hint[v], true);
                 }
                 let edges = topo.vertex_edges(v);
                 if edges.is_empty() {
-                    return (p, true);
+                    return (p, hint[v], true);
                 }
                 let mut c = DVec3::ZERO;
                 let mut len = 0.0;
@@ -234,7 +466,7 @@ pub fn relax(
                 let d = c - p;
                 let t = d - d.dot(n) * n;
                 let moved = p + step * t;
-                let (q, tri) = proj.closest(moved);
+                let (q, tri) = proj.closest_near(moved, &[hint[v]]);
                 let mut ok =
                     proj.normals[tri as usize].dot(n) > 0.3 && q.distance(moved) < 0.5 * len;
                 // No incident face may turn over (its normal stays within 90° of the old one
@@ -260,15 +492,16 @@ pub fn relax(
                     }
                 }
                 if ok {
-                    (q, true)
+                    (q, tri, true)
                 } else {
-                    (p, false)
+                    (p, hint[v], false)
                 }
             })
             .collect();
         rejected = 0;
-        for (v, (p, ok)) in next.into_iter().enumerate() {
+        for (v, (p, tri, ok)) in next.into_iter().enumerate() {
             pos[v] = p;
+            hints[v] = tri;
             if !ok {
                 rejected += 1;
             }
@@ -278,27 +511,30 @@ pub fn relax(
 }
 
 /// Whether each face of a level is flipped against the input (its normal opposes the input
-/// normal at the closest input point of its centroid) or has zero area.
-pub fn flipped_faces(topo: &Topology, pos: &[DVec3], proj: &Projector) -> Vec<bool> {
+/// normal at the closest input point of its centroid) or has zero area; `hints` as in
+/// [`relax`].
+pub fn flipped_faces(topo: &Topology, pos: &[DVec3], hints: &[u32], proj: &Projector) -> Vec<bool> {
     (0..topo.num_faces())
         .into_par_iter()
         .map(|f| {
             let fv = topo.face_vertices(f);
             let n = face_normal(fv, pos);
             let c = fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64;
-            let (_, tri) = proj.closest(c);
+            let (_, tri) = proj.closest_near(c, &face_hints(fv, hints));
             n.dot(proj.normals[tri as usize]) <= 0.0
         })
         .collect()
 }
 
-/// Number of faces around `v` that are flipped against the input when `v` is at `p`, and
-/// the smallest angle of those faces (degrees).
+/// Number of faces around `v` that are flipped against the input when `v` is at `p` (near
+/// input triangle `hint`), and the smallest angle of those faces (degrees).
 fn flips_around(
     v: usize,
     p: DVec3,
+    hint: u32,
     topo: &Topology,
     pos: &[DVec3],
+    hints: &[u32],
     proj: &Projector,
 ) -> (usize, f64) {
     let mut count = 0;
@@ -321,30 +557,43 @@ fn flips_around(
                 n += (q(i) - q(0)).cross(q(i + 1) - q(0));
             }
         }
-        let (_, tri) = proj.closest(c / m as f64);
+        let mut fh = face_hints(fv, hints);
+        if let Some(k) = fv.iter().take(4).position(|&w| w as usize == v) {
+            fh[k] = hint;
+        }
+        let (_, tri) = proj.closest_near(c / m as f64, &fh);
         if n.dot(proj.normals[tri as usize]) <= 0.0 {
             count += 1;
         }
+        // The smallest angle has the largest cosine (one `acos` per face).
+        let mut max_cos = f64::NEG_INFINITY;
         for i in 0..m {
             let a = q((i + 1) % m) - q(i);
             let b = q((i + m - 1) % m) - q(i);
             let (la, lb) = (a.length(), b.length());
-            let ang = if la > 0.0 && lb > 0.0 {
-                (a.dot(b) / (la * lb)).clamp(-1.0, 1.0).acos().to_degrees()
+            if la > 0.0 && lb > 0.0 {
+                max_cos = max_cos.max((a.dot(b) / (la * lb)).clamp(-1.0, 1.0));
             } else {
-                0.0
-            };
-            min_angle = min_angle.min(ang);
+                max_cos = f64::INFINITY;
+            }
         }
+        let ang = if max_cos == f64::INFINITY {
+            0.0
+        } else if max_cos == f64::NEG_INFINITY {
+            180.0
+        } else {
+            max_cos.acos().to_degrees()
+        };
+        min_angle = min_angle.min(ang);
     }
     (count, min_angle)
 }
 
 /// Whether a face is flipped against the input or has an angle below `min_degrees`.
-fn bad_face(fv: &[u32], pos: &[DVec3], proj: &Projector, min_degrees: f64) -> bool {
+fn bad_face(fv: &[u32], pos: &[DVec3], hints: &[u32], proj: &Projector, min_degrees: f64) -> bool {
     let n = face_normal(fv, pos);
     let c = fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64;
-    let (_, tri) = proj.closest(c);
+    let (_, tri) = proj.closest_near(c, &face_hints(fv, hints));
     n.dot(proj.normals[tri as usize]) <= 0.0 || super::quality::min_angle(fv, pos) < min_degrees
 }
 
@@ -353,19 +602,34 @@ fn bad_face(fv: &[u32], pos: &[DVec3], proj: &Projector, min_degrees: f64) -> bo
 /// opens a fold) and of points between it and its current position, and takes the first that
 /// lowers the number of flipped faces around it (or keeps it and raises their smallest
 /// angle); vertices stay on the input. Gauss-Seidel over the bad region, at most `rounds`
-/// rounds, each widening the region by one ring (up to three). Returns the number of flipped
-/// faces left.
+/// rounds, each widening the region by one ring (up to three). `hints` as in [`relax`].
+/// Returns the number of flipped faces left.
 pub fn untangle(
     pos: &mut [DVec3],
+    hints: &mut [u32],
     topo: &Topology,
     fixed: &[bool],
     proj: &Projector,
     rounds: u32,
 ) -> usize {
+    untangle_counts(pos, hints, topo, fixed, proj, rounds).0
+}
+
+/// [`untangle`], returning the faces left whose normal makes a non-acute angle with the
+/// input normal (`≤ 0`: flipped or zero area, as [`flipped_faces`]) and those whose normal
+/// opposes it (`< 0`: [`super::quality::Quality::flipped`]).
+pub fn untangle_counts(
+    pos: &mut [DVec3],
+    hints: &mut [u32],
+    topo: &Topology,
+    fixed: &[bool],
+    proj: &Projector,
+    rounds: u32,
+) -> (usize, usize) {
     const BAD_ANGLE: f64 = 2.0;
     let mut flipped: Vec<bool> = (0..topo.num_faces())
         .into_par_iter()
-        .map(|f| bad_face(topo.face_vertices(f), pos, proj, BAD_ANGLE))
+        .map(|f| bad_face(topo.face_vertices(f), pos, hints, proj, BAD_ANGLE))
         .collect();
     let mut count = flipped.iter().filter(|&&f| f).count();
     for radius in 1..=rounds {
@@ -403,16 +667,17 @@ pub fn untangle(
                 .map(|&e| pos[topo.other_vertex(e as usize, v as u32) as usize])
                 .sum::<DVec3>()
                 / edges.len() as f64;
-            let now = flips_around(v, pos[v], topo, pos, proj);
+            let now = flips_around(v, pos[v], hints[v], topo, pos, hints, proj);
             if now.0 == 0 && now.1 >= BAD_ANGLE {
                 continue;
             }
             let p0 = pos[v];
             for t in [1.0, 0.5, 0.25] {
-                let (q, _) = proj.closest(p0.lerp(c, t));
-                let new = flips_around(v, q, topo, pos, proj);
+                let (q, tri) = proj.closest_near(p0.lerp(c, t), &[hints[v]]);
+                let new = flips_around(v, q, tri, topo, pos, hints, proj);
                 if new.0 < now.0 || (new.0 == now.0 && new.1 > now.1) {
                     pos[v] = q;
+                    hints[v] = tri;
                     break;
                 }
             }
@@ -427,12 +692,13 @@ pub fn untangle(
         faces.sort_unstable();
         faces.dedup();
         let cur: &[DVec3] = pos;
+        let hint: &[u32] = hints;
         let updates: Vec<(u32, bool)> = faces
             .par_iter()
             .map(|&f| {
                 (
                     f,
-                    bad_face(topo.face_vertices(f as usize), cur, proj, BAD_ANGLE),
+                    bad_face(topo.face_vertices(f as usize), cur, hint, proj, BAD_ANGLE),
                 )
             })
             .collect();
@@ -441,8 +707,20 @@ pub fn untangle(
         }
         count = flipped.iter().filter(|&&f| f).count();
     }
-    flipped_faces(topo, pos, proj)
-        .iter()
-        .filter(|&&f| f)
-        .count()
+    // A face that is not bad is not flipped; only the bad ones need the flip test.
+    let cur: &[DVec3] = pos;
+    let hint: &[u32] = hints;
+    flipped
+        .par_iter()
+        .enumerate()
+        .filter(|&(_, &bad)| bad)
+        .map(|(f, _)| {
+            let fv = topo.face_vertices(f);
+            let n = face_normal(fv, cur);
+            let c = fv.iter().map(|&v| cur[v as usize]).sum::<DVec3>() / fv.len() as f64;
+            let (_, tri) = proj.closest_near(c, &face_hints(fv, hint));
+            let d = n.dot(proj.normals[tri as usize]);
+            (usize::from(d <= 0.0), usize::from(d < 0.0))
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
 }

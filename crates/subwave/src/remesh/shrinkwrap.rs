@@ -44,13 +44,16 @@ pub fn shrinkwrap(
                 fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64
             }));
         }
+        let mut hints = vec![u32::MAX; next.len()];
         next[nv..]
             .par_iter_mut()
-            .for_each(|p| *p = proj.closest(*p).0);
+            .zip(&mut hints[nv..])
+            .for_each(|(p, h)| (*p, *h) = proj.closest(*p));
         let mut fixed = vec![false; next.len()];
         fixed[..fixed_base.len()].copy_from_slice(fixed_base);
         relax(
             &mut next,
+            &mut hints,
             &h.topologies[l + 1],
             &fixed,
             proj,

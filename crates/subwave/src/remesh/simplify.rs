@@ -269,6 +269,12 @@ impl State<'_> {
     }
 
     fn recount_chain(&mut self, u: u32) {
+        // Chain edges only ever join chain points (a collapse moves a chain edge only along
+        // a chain edge, into a chain point).
+        if !self.chain_point[u as usize] {
+            self.chain_deg[u as usize] = 0;
+            return;
+        }
         let mut n = Vec::new();
         self.neighbors(u, &mut n);
         self.chain_deg[u as usize] = n
@@ -559,15 +565,18 @@ impl State<'_> {
         let mut points = vec![u];
         let old_faces = std::mem::take(&mut self.vfaces[ui]);
         let flat = self.flatten(u, &old_faces);
-        // Old parameters of the points, as planar positions in the flattened star.
-        let mut planar: Vec<(u32, [f64; 2])> = Vec::new();
+        // Old parameters of the points, as planar positions in the flattened star, with
+        // their index in `points` (u, then the points of the old faces in order).
+        let mut planar: Vec<(u32, [f64; 2], usize)> = Vec::new();
         if let Some(flat) = &flat {
             let at = |w: u32| flat.iter().find(|x| x.0 == w).map(|x| x.1);
-            planar.push((u, [0.0, 0.0]));
+            planar.push((u, [0.0, 0.0], 0));
+            let mut index = 1;
             for &f in &old_faces {
                 let t = self.faces[f as usize];
                 let c = t.map(|w| at(w).unwrap_or([0.0, 0.0]));
                 for &p in &self.face_points[f as usize] {
+                    index += 1;
                     if self.chain_point[p as usize] {
                         continue;
                     }
@@ -578,6 +587,7 @@ impl State<'_> {
                             b[0] * c[0][0] + b[1] * c[1][0] + b[2] * c[2][0],
                             b[0] * c[0][1] + b[1] * c[1][1] + b[2] * c[2][1],
                         ],
+                        index - 1,
                     ));
                 }
             }
@@ -630,8 +640,7 @@ impl State<'_> {
                     <= 0.0
             });
             if !folds {
-                let index: Vec<u32> = points.clone();
-                for &(p, xy) in &planar {
+                for &(p, xy, i) in &planar {
                     let mut best = (f64::NEG_INFINITY, 0u32, [0.0; 3]);
                     for &(f, c) in &tris {
                         let l = bary_2d(c, xy);
@@ -648,9 +657,7 @@ impl State<'_> {
                             bary: l.map(|x| x / sum),
                         };
                         self.face_points[best.1 as usize].push(p);
-                        if let Some(i) = index.iter().position(|&q| q == p) {
-                            done[i] = true;
-                        }
+                        done[i] = true;
                     }
                 }
             }
