@@ -32,10 +32,9 @@
 //! level can fold; [`normal_resample`] leaves the check to [`super::quality`].
 
 use glam::DVec3;
-use parry3d_f64::query::{PointQueryWithLocation, Ray, RayCast};
-use parry3d_f64::shape::TriMesh;
 use rayon::prelude::*;
 
+use super::resample::Projector;
 use crate::hierarchy::Hierarchy;
 use crate::subdivision::refine::Split;
 use crate::subdivision::{Scheme, SubdivideOptions};
@@ -148,23 +147,10 @@ impl NormalSurface {
                 input_pos.len()
             )));
         }
-        let normals = input_tris
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|i| input_pos[i as usize]);
-                (b - a).cross(c - a).normalize_or_zero()
-            })
-            .collect();
-        let shape = TriMesh::new(
-            input_pos
-                .iter()
-                .map(|p| parry3d_f64::math::Vector::new(p.x, p.y, p.z))
-                .collect(),
-            input_tris.to_vec(),
-        )
-        .map_err(|e| Error::InvalidArgument(format!("cannot index the input triangles: {e:?}")))?;
         Ok(NormalSurface {
-            surface: Surface { shape, normals },
+            surface: Surface {
+                proj: Projector::new(input_pos, input_tris)?,
+            },
         })
     }
 }
@@ -258,44 +244,32 @@ pub fn normal_resample_on(
     Ok(stats)
 }
 
-/// The input surface with its oriented triangle normals.
+/// The input surface (a BVH and oriented triangle normals).
 struct Surface {
-    shape: TriMesh,
-    normals: Vec<DVec3>,
+    proj: Projector,
 }
 
 impl Surface {
     /// The nearest intersection of the line `p + t n`, `|t| ≤ reach`, with the input, if the
     /// hit triangle faces the same way as `n` (cosine at least `min_cos`).
     fn pierce(&self, p: DVec3, n: DVec3, reach: f64, min_cos: f64) -> Option<DVec3> {
-        let origin = parry3d_f64::math::Vector::new(p.x, p.y, p.z);
         // (signed distance along n, hit triangle) of the nearest hit.
         let mut best: Option<(f64, u32)> = None;
         for sign in [1.0, -1.0] {
-            let d = sign * n;
-            let ray = Ray::new(origin, parry3d_f64::math::Vector::new(d.x, d.y, d.z));
-            if let Some(hit) = self.shape.cast_local_ray_and_get_normal(&ray, reach, false) {
-                let t = hit.time_of_impact;
+            if let Some((t, tri)) = self.proj.cast_ray(p, sign * n, reach) {
                 if best.is_none_or(|(bt, _)| t < bt.abs()) {
-                    best = Some((sign * t, hit.subshape));
+                    best = Some((sign * t, tri));
                 }
             }
         }
         let (t, tri) = best?;
-        (self.normals.get(tri as usize)?.dot(n) >= min_cos).then_some(p + t * n)
+        (self.proj.normals.get(tri as usize)?.dot(n) >= min_cos).then_some(p + t * n)
     }
 
     /// The closest input point to `p`, if its triangle faces the same way as `n`.
     fn closest(&self, p: DVec3, n: DVec3, min_cos: f64) -> Option<DVec3> {
-        let (proj, (tri, _)) = self.shape.project_local_point_and_get_location(
-            parry3d_f64::math::Vector::new(p.x, p.y, p.z),
-            false,
-        );
-        (self.normals.get(tri as usize)?.dot(n) >= min_cos).then_some(DVec3::new(
-            proj.point.x,
-            proj.point.y,
-            proj.point.z,
-        ))
+        let (q, tri) = self.proj.closest(p);
+        (self.proj.normals.get(tri as usize)?.dot(n) >= min_cos).then_some(q)
     }
 }
 

@@ -18,7 +18,7 @@
 //! curves (fixed), so boundaries stay boundaries and creases stay sharp.
 
 use glam::DVec3;
-use parry3d_f64::query::PointQueryWithLocation;
+use parry3d_f64::query::{PointQueryWithLocation, Ray, RayCast};
 use parry3d_f64::shape::TriMesh;
 use rayon::prelude::*;
 
@@ -207,6 +207,18 @@ impl Projector {
             false,
         );
         (DVec3::new(proj.point.x, proj.point.y, proj.point.z), tri)
+    }
+
+    /// The first input triangle hit by the ray `p + t d`, `0 ≤ t ≤ max_t` (`d` need not be
+    /// unit; `t` is in multiples of it), as `(t, triangle)`; either side of a triangle counts.
+    pub fn cast_ray(&self, p: DVec3, d: DVec3, max_t: f64) -> Option<(f64, u32)> {
+        let ray = Ray::new(
+            parry3d_f64::math::Vector::new(p.x, p.y, p.z),
+            parry3d_f64::math::Vector::new(d.x, d.y, d.z),
+        );
+        self.shape
+            .cast_local_ray_and_get_normal(&ray, max_t, false)
+            .map(|hit| (hit.time_of_impact, hit.subshape))
     }
 }
 
