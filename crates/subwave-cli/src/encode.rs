@@ -78,6 +78,41 @@ pub enum ComponentsArg {
     Independent,
 }
 
+/// The options of [`subwave::codec::prepare`] shared by `subwave encode` and `subwave eval`.
+#[derive(Debug, clap::Args)]
+pub struct PrepareArgs {
+    /// Subdivision levels: of the remesh of an irregular input (default: the fewest whose
+    /// finest level has twice the input's triangles), or required of a semi-regular input
+    /// (default: as many as it has).
+    #[arg(long, value_name = "L", value_parser = clap::value_parser!(u32).range(1..=12))]
+    pub levels: Option<u32>,
+    /// Base faces of the remesh (irregular input only).
+    #[arg(long, value_name = "N")]
+    pub base_faces: Option<u32>,
+    /// Feature edges of the remesh: dihedral angle in degrees (kept sharp as creases).
+    #[arg(long, value_name = "DEG")]
+    pub sharp_angle: Option<f64>,
+    /// How an irregular input is remeshed: `normal` re-samples the MAPS remesh into a normal
+    /// mesh (Guskov et al. 2000) coded with the unlifted butterfly wavelet, `maps` keeps it
+    /// (lifted butterfly); `auto` is `normal` unless --sharp-angle marks feature edges.
+    #[arg(long, value_enum, default_value_t = RemeshArg::Auto)]
+    pub remesh: RemeshArg,
+}
+
+impl PrepareArgs {
+    /// The library options; `quads` asks for a quad hierarchy (Bertram's wavelets).
+    pub fn options(&self, quads: bool) -> PrepareOptions {
+        PrepareOptions {
+            levels: self.levels,
+            base_faces: self.base_faces.map(|n| n as usize),
+            quads,
+            sharp_angle: self.sharp_angle,
+            normal: self.remesh.into(),
+            force_remesh: false,
+        }
+    }
+}
+
 /// How an irregular input is remeshed (`--remesh`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum RemeshArg {
@@ -107,14 +142,10 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     let input_vertices = mesh.num_vertices();
     let t0 = Instant::now();
     // A semi-regular mesh is used as it is; anything else is remeshed first.
-    let popts = PrepareOptions {
-        levels: args.levels,
-        base_faces: args.base_faces.map(|n| n as usize),
-        quads: matches!(args.wavelet, Some(WaveletArg::Linear | WaveletArg::Cubic)),
-        sharp_angle: args.sharp_angle,
-        normal: args.remesh.into(),
-        ..Default::default()
-    };
+    let popts = args.prep.options(matches!(
+        args.wavelet,
+        Some(WaveletArg::Linear | WaveletArg::Cubic)
+    ));
     let prepared = crate::progress::with_bar("remesh", false, |cb| prepare(&mesh, &popts, cb))
         .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let prepare_ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -139,7 +170,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
         for w in &r.warnings {
             tracing::warn!("{name}: {w}");
         }
-    } else if args.base_faces.is_some() {
+    } else if args.prep.base_faces.is_some() {
         tracing::warn!("--base-faces only applies to remeshed (irregular) input; the detected base mesh is used");
     }
     if let Some(n) = &prepared.normal {

@@ -10,7 +10,7 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use serde_json::json;
 use subwave::codec::eval::{self, bpv_at_psnr, RdPoint};
-use subwave::codec::prepare::{prepare, PrepareOptions, Prepared};
+use subwave::codec::prepare::{prepare, Prepared};
 use subwave::codec::progressive::{decode, encode, inspect, DecodeOptions, EncodeOptions};
 use subwave::io::read_mesh;
 
@@ -122,18 +122,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     let t0 = Instant::now();
     let quads = matches!(args.wavelet, Some(WaveletArg::Linear | WaveletArg::Cubic));
     let prep = progress::with_bar("prepare", args.json, |cb| {
-        prepare(
-            &mesh,
-            &PrepareOptions {
-                levels: args.levels,
-                base_faces: args.base_faces.map(|n| n as usize),
-                quads,
-                sharp_angle: args.sharp_angle,
-                force_remesh: false,
-                normal: args.remesh.into(),
-            },
-            cb,
-        )
+        prepare(&mesh, &args.prep.options(quads), cb)
     })
     .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     if let (Some(n), false) = (&prep.normal, args.json) {

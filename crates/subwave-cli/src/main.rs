@@ -97,15 +97,9 @@ pub struct EvalArgs {
     /// The input format, if the extension does not tell it.
     #[arg(short, long, value_name = "F", value_parser = parse_format)]
     pub format: Option<Format>,
-    /// Subdivision levels (of the remesh; or required of a semi-regular input).
-    #[arg(long, value_name = "L", value_parser = clap::value_parser!(u32).range(1..=12))]
-    pub levels: Option<u32>,
-    /// Base faces of the remesh (irregular input only).
-    #[arg(long, value_name = "N")]
-    pub base_faces: Option<u32>,
-    /// Feature edges of the remesh: dihedral angle in degrees.
-    #[arg(long, value_name = "DEG")]
-    pub sharp_angle: Option<f64>,
+    /// Levels, base faces, features and method of the remesh.
+    #[command(flatten)]
+    pub prep: encode::PrepareArgs,
     /// The wavelet (default: butterfly on triangle meshes, cubic on quad meshes).
     #[arg(long, value_enum)]
     pub wavelet: Option<encode::WaveletArg>,
@@ -118,9 +112,6 @@ pub struct EvalArgs {
     /// Unlifted midpoint/butterfly (no update step).
     #[arg(long)]
     pub unlifted: bool,
-    /// How an irregular input is remeshed (see `subwave encode --help`).
-    #[arg(long, value_enum, default_value_t = encode::RemeshArg::Auto)]
-    pub remesh: encode::RemeshArg,
     /// Truncation points (byte budgets spaced geometrically from the base mesh to the whole
     /// stream).
     #[arg(long, value_name = "K", default_value_t = 10,
@@ -154,26 +145,15 @@ pub struct EncodeArgs {
     /// The input format, if the extension does not tell it.
     #[arg(short, long, value_name = "F", value_parser = parse_format)]
     pub format: Option<Format>,
-    /// Subdivision levels to detect (default: as many as the mesh has).
-    #[arg(long, value_name = "L", value_parser = clap::value_parser!(u32).range(1..=12))]
-    pub levels: Option<u32>,
-    /// Base faces of the remesher (irregular input only).
-    #[arg(long, value_name = "N")]
-    pub base_faces: Option<u32>,
+    /// Levels, base faces, features and method of the remesh.
+    #[command(flatten)]
+    pub prep: encode::PrepareArgs,
     /// The wavelet (default: butterfly on triangle meshes, cubic on quad meshes).
     #[arg(long, value_enum)]
     pub wavelet: Option<encode::WaveletArg>,
     /// Unlifted midpoint/butterfly (no update step; not with --lossless).
     #[arg(long)]
     pub unlifted: bool,
-    /// How an irregular input is remeshed: `normal` re-samples the MAPS remesh into a normal
-    /// mesh (Guskov et al. 2000) coded with the unlifted butterfly wavelet, `maps` keeps it
-    /// (lifted butterfly); `auto` is `normal` unless --sharp-angle marks feature edges.
-    #[arg(long, value_enum, default_value_t = encode::RemeshArg::Auto)]
-    pub remesh: encode::RemeshArg,
-    /// Feature edges of the remesh: dihedral angle in degrees (kept sharp as creases).
-    #[arg(long, value_name = "DEG")]
-    pub sharp_angle: Option<f64>,
     /// Bit planes of the coefficient quantization (eq. 4.8; default 16), or with --lossless
     /// the bits of the position grid (default 12).
     #[arg(long, value_name = "B", value_parser = clap::value_parser!(u32).range(1..=30))]
