@@ -176,6 +176,9 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     if let Some(n) = &prepared.normal {
         println!("{}", print::normal_stats(n));
     }
+    if let Some(d) = &prepared.remesh_distance {
+        println!("{}", print::remesh_distance(d));
+    }
     let mut opts = prepared.encode_options();
     let h = prepared.hierarchy;
     if let Some(w) = args.wavelet {
@@ -207,6 +210,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     opts.contexts = !args.no_contexts;
     if let Some(b) = args.bits {
         opts.bits = b;
+        opts.max_rms = None;
     } else if args.lossless {
         opts.bits = 12;
     }

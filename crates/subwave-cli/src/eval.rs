@@ -96,6 +96,7 @@ fn options(args: &EvalArgs, prep: &Prepared) -> EncodeOptions {
     }
     if let Some(b) = args.bits {
         o.bits = b;
+        o.max_rms = None;
     }
     o.lifted &= !args.unlifted;
     o

@@ -103,7 +103,7 @@ pub struct EvalArgs {
     /// The wavelet (default: butterfly on triangle meshes, cubic on quad meshes).
     #[arg(long, value_enum)]
     pub wavelet: Option<encode::WaveletArg>,
-    /// Bit planes of the coefficient quantization (eq. 4.8).
+    /// Bit planes of the coefficient quantization (eq. 4.8; default as `encode`).
     #[arg(long, value_name = "B", value_parser = clap::value_parser!(u32).range(1..=30))]
     pub bits: Option<u32>,
     /// Detail coordinates (triangle wavelets; default local).
@@ -154,8 +154,9 @@ pub struct EncodeArgs {
     /// Unlifted midpoint/butterfly (no update step; not with --lossless).
     #[arg(long)]
     pub unlifted: bool,
-    /// Bit planes of the coefficient quantization (eq. 4.8; default 16), or with --lossless
-    /// the bits of the position grid (default 12).
+    /// Bit planes of the coefficient quantization (eq. 4.8; default 16, fewer for a remeshed
+    /// input: only those that bring the stream closer to the input than a quarter of the
+    /// remesh's own distance), or with --lossless the bits of the position grid (default 12).
     #[arg(long, value_name = "B", value_parser = clap::value_parser!(u32).range(1..=30))]
     pub bits: Option<u32>,
     /// Detail coordinates (triangle wavelets; default local).

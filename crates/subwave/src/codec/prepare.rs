@@ -8,6 +8,7 @@
 //! "Decimation in meshes", Bertram §5.3).
 
 use crate::codec::progressive::{EncodeOptions, Wavelet};
+use crate::distance::{distance, Distance};
 use crate::hierarchy::Hierarchy;
 use crate::mesh::Mesh;
 use crate::remesh::normal::{normal_resample_on, NormalOptions, NormalStats, NormalSurface};
@@ -22,6 +23,14 @@ pub const FACE_RATIO: usize = 2;
 pub const MAX_DEFAULT_LEVELS: u32 = 6;
 /// Default base faces of the remesh of an irregular input.
 pub const DEFAULT_BASE_FACES: usize = 200;
+/// Area samples per surface of [`Prepared::remesh_distance`].
+pub const REMESH_SAMPLES: usize = 40_000;
+/// The quantization error [`Prepared::encode_options`] allows, as a share of the remesh's
+/// own RMS distance to the input ([`EncodeOptions::max_rms`]): the two errors add roughly
+/// in quadrature, so the full stream is at most `sqrt(1 + share²)` times further from the
+/// input than the remesh (0.26 dB at 1/4), while the bit planes below it, which only
+/// describe the remesh's own sampling noise, are not sent.
+pub const QUANTIZATION_SHARE: f64 = 0.25;
 
 /// Options of [`prepare`].
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -73,6 +82,9 @@ pub struct Prepared {
     pub remeshed: Option<Remeshed>,
     /// What the normal re-sampling did, if it ran ([`PrepareOptions::normal`]).
     pub normal: Option<NormalStats>,
+    /// The distance between the input and the hierarchy's finest level, if the input was
+    /// remeshed ([`REMESH_SAMPLES`] area samples per surface).
+    pub remesh_distance: Option<Distance>,
 }
 
 impl Prepared {
@@ -86,6 +98,10 @@ impl Prepared {
             o.wavelet = Wavelet::Butterfly;
             o.lifted = false;
         }
+        o.max_rms = self
+            .remesh_distance
+            .map(|d| d.rms * QUANTIZATION_SHARE)
+            .filter(|t| *t > 0.0);
         o
     }
 }
@@ -118,6 +134,7 @@ pub fn prepare(
                 hierarchy,
                 remeshed: None,
                 normal: None,
+                remesh_distance: None,
             });
         }
     }
@@ -159,10 +176,14 @@ pub fn prepare(
         normal = Some(stats);
         progress("normal", 1.0);
     }
+    progress("distance", 0.0);
+    let remesh_distance = Some(distance(mesh, &r.mesh, REMESH_SAMPLES)?);
+    progress("distance", 1.0);
     Ok(Prepared {
         hierarchy: r.hierarchy.clone(),
         remeshed: Some(r),
         normal,
+        remesh_distance,
     })
 }
 
@@ -238,6 +259,65 @@ mod tests {
             assert!(p.encode_options().lifted);
         }
         assert!(run(Some(40.0), Some(true)).normal.is_some());
+    }
+
+    #[test]
+    fn a_remesh_codes_only_the_planes_its_own_error_needs() {
+        use crate::codec::progressive::{decode, encode_with_info, inspect, DecodeOptions};
+        let m = generate::torus(1.0, 0.4, 25, 13, true);
+        let opts = PrepareOptions {
+            levels: Some(3),
+            base_faces: Some(64),
+            ..Default::default()
+        };
+        let p = prepare(&m, &opts, &mut |_, _| {}).unwrap();
+        let d = p.remesh_distance.expect("remeshed input has a distance");
+        assert!(d.rms > 0.0 && d.rms < 0.01 * d.diagonal, "{d:?}");
+        let o = p.encode_options();
+        let tol = o.max_rms.expect("a remesh sets max_rms");
+        assert_eq!(tol, d.rms * QUANTIZATION_SHARE);
+        let (bytes, sh) = encode_with_info(&p.hierarchy, &o).unwrap();
+        let planes = inspect(&bytes).unwrap().bits;
+        assert!(planes < o.bits, "{planes} planes of {}", o.bits);
+        // The full decode is within the tolerance of the hierarchy (the base grid adds a
+        // little), and one plane fewer would not be.
+        let rms = |bytes: &[u8]| {
+            let dec = decode(bytes, &DecodeOptions::default()).unwrap();
+            let s: f64 = dec
+                .mesh
+                .positions
+                .iter()
+                .zip(&sh.positions)
+                .map(|(a, b)| a.distance_squared(*b))
+                .sum();
+            (s / sh.positions.len() as f64).sqrt()
+        };
+        assert!(rms(&bytes) <= tol * 1.05, "{} > {tol}", rms(&bytes));
+        let fewer = EncodeOptions {
+            bits: planes - 1,
+            max_rms: None,
+            ..o.clone()
+        };
+        let (fewer, _) = encode_with_info(&p.hierarchy, &fewer).unwrap();
+        assert!(rms(&fewer) > tol, "{} <= {tol}", rms(&fewer));
+        // Without a tolerance every plane is coded; a detected hierarchy has none.
+        let all = EncodeOptions {
+            max_rms: None,
+            ..o.clone()
+        };
+        assert_eq!(
+            inspect(&encode_with_info(&p.hierarchy, &all).unwrap().0)
+                .unwrap()
+                .bits,
+            o.bits
+        );
+        let sr = prepare(
+            &generate::icosphere(2),
+            &PrepareOptions::default(),
+            &mut |_, _| {},
+        )
+        .unwrap();
+        assert!(sr.remesh_distance.is_none() && sr.encode_options().max_rms.is_none());
     }
 
     #[test]

@@ -195,6 +195,12 @@ pub struct EncodeOptions {
     /// Vertices of the input the hierarchy stands for (recorded in the header for rates in
     /// bits per input vertex); `None`: the hierarchy's finest vertex count.
     pub input_vertices: Option<u32>,
+    /// Lossy: code the fewest bit planes (at most [`EncodeOptions::bits`]) whose full
+    /// decode reconstructs the finest positions within this RMS error (model units, over
+    /// the vertices; bisection over the planes, each candidate quantized and synthesised as the decoder would). Bits beyond it buy nothing when the hierarchy
+    /// itself is only that close to the surface it stands for (a remesh): `None` (the
+    /// default) codes all `bits` planes. Ignored in lossless mode.
+    pub max_rms: Option<f64>,
 }
 
 impl Default for EncodeOptions {
@@ -210,6 +216,7 @@ impl Default for EncodeOptions {
             layout: Layout::Embedded,
             lossless: false,
             input_vertices: None,
+            max_rms: None,
         }
     }
 }
@@ -487,6 +494,7 @@ pub fn encode_with_info(h: &Hierarchy, opts: &EncodeOptions) -> Result<(Vec<u8>,
         // 30.3 vs 30.3 KB (remeshed bunny), 12 bits.
         return encode_lossless(h, opts, bb, forest.num_trees);
     }
+    let mut bits = opts.bits;
     let mut base_chunk: Option<Vec<u8>> = None;
     let mut reindexed: Option<Hierarchy> = None;
     let (grid, base_q, mags, steps) = if opts.lossless {
@@ -530,13 +538,26 @@ pub fn encode_with_info(h: &Hierarchy, opts: &EncodeOptions) -> Result<(Vec<u8>,
         let new_base = enc.decoded.clone();
         let nh = reindex(h, &new_base, &enc.vertex_map)?;
         let mut flat = nh.positions.clone();
-        Transform::new(&nh, opts.wavelet, lifted, frame)?.forward(&mut flat)?;
+        let transform = Transform::new(&nh, opts.wavelet, lifted, frame)?;
+        transform.forward(&mut flat)?;
+        if let Some(tol) = opts.max_rms {
+            bits = planes_search(
+                &transform,
+                &flat,
+                v0,
+                &nh.positions,
+                bits,
+                opts.components,
+                tol,
+            )?;
+        }
+        drop(transform);
         base_chunk = Some(enc.bytes);
         let nforest = Forest::new(&nh)?;
         reindexed = Some(nh);
         let grid = Grid::new(bb[0], bb[1], opts.base_bits);
         let details = &flat[v0..];
-        let steps = quantize::steps(details, opts.bits, opts.components);
+        let steps = quantize::steps(details, bits, opts.components);
         let mut mag = Vec::with_capacity(3 * details.len());
         let mut neg = Vec::with_capacity(3 * details.len());
         for d in details {
@@ -616,7 +637,7 @@ pub fn encode_with_info(h: &Hierarchy, opts: &EncodeOptions) -> Result<(Vec<u8>,
             Layout::Trees => 1,
         },
         levels: l as u8,
-        bits: opts.bits as u8,
+        bits: bits as u8,
         base_bits: opts.base_bits as u8,
         reserved: 0,
         top: mags.top.map(|t| t as i8),
@@ -634,6 +655,65 @@ pub fn encode_with_info(h: &Hierarchy, opts: &EncodeOptions) -> Result<(Vec<u8>,
         num_trees: forest.num_trees as u32,
     };
     Ok((container::write(&header, &chunks)?, stream_hierarchy))
+}
+
+/// The RMS error over the vertices of the full decode of `N = bits` planes: the details
+/// `flat[v0..]` (of `transform`, which analysed `reference`) quantized with the steps of
+/// eq. 4.8 and reconstructed at mid-interval (eqs. 4.11-4.12) as the decoder does, the
+/// coarse positions `flat[..v0]` exact, then synthesised.
+fn quantization_rms(
+    transform: &Transform,
+    flat: &[DVec3],
+    v0: usize,
+    reference: &[DVec3],
+    bits: u32,
+    components: ComponentMode,
+) -> Result<f64> {
+    let steps = quantize::steps(&flat[v0..], bits, components);
+    let mut data = flat.to_vec();
+    data[v0..].par_iter_mut().for_each(|d| {
+        for c in 0..3 {
+            let (q, neg) = quantize::quantize(d[c], steps[c]);
+            d[c] = if q == 0 {
+                0.0
+            } else {
+                quantize::reconstruct(q, 0, neg, steps[c])
+            };
+        }
+    });
+    transform.inverse(&mut data)?;
+    let sum: f64 = data
+        .par_iter()
+        .zip(reference.par_iter())
+        .map(|(a, b)| a.distance_squared(*b))
+        .sum();
+    Ok((sum / data.len().max(1) as f64).sqrt())
+}
+
+/// The fewest bit planes `N ≤ max_bits` whose full decode is within `tol` RMS of
+/// `reference` ([`quantization_rms`], which falls as `N` grows; bisection), or `max_bits`.
+fn planes_search(
+    transform: &Transform,
+    flat: &[DVec3],
+    v0: usize,
+    reference: &[DVec3],
+    max_bits: u32,
+    components: ComponentMode,
+    tol: f64,
+) -> Result<u32> {
+    if !(tol > 0.0 && tol.is_finite()) {
+        return Ok(max_bits);
+    }
+    let (mut lo, mut hi) = (1u32, max_bits);
+    while lo < hi {
+        let mid = (lo + hi) / 2;
+        if quantization_rms(transform, flat, v0, reference, mid, components)? <= tol {
+            hi = mid;
+        } else {
+            lo = mid + 1;
+        }
+    }
+    Ok(hi)
 }
 
 /// The lossless encoder ([`super::lossless`]): base chunk by the base-mesh coder's integer
