@@ -13,12 +13,19 @@
 //! version   u16                          (VERSION)
 //! hlen      u32                          bytes of the header including the index and its CRC
 //! fields    Header::write                fixed size (HEADER_FIELDS bytes)
-//! nchunks   u32
-//! per chunk kind u8, id u32, offset u64, len u32, crc u32, nmarks u16, marks (LEB128 varints
-//!           of the differences between successive marks, the first from 0)
+//! nchunks   varint
+//! per chunk kind u8, id varint, len varint, crc u32, nmarks varint, marks (varints of the
+//!           differences between successive marks, the first from 0)
 //! hcrc      u32                          CRC-32 of every header byte before it
-//! chunks    ...                          at their offsets, in index order
+//! chunks    ...                          contiguous, in index order
 //! ```
+//! `varint` is LEB128 (7 bits per byte, low first, at most 5 bytes for a `u32`). Chunks
+//! follow the header without gaps, so the index stores lengths and [`read`] derives each
+//! chunk's absolute byte offset ([`ChunkEntry::offset`]: `hlen` plus the lengths before it)
+//! — a client that has the header knows every chunk's byte range without a second request.
+//! (Version 5 stored the offsets and fixed-width fields: 23 bytes per entry instead of
+//! about 8, 245 bytes more for a 16-plane stream.)
+//!
 //! `marks` are, for a per-tree chunk, the byte length of the prefix of the chunk that holds
 //! bit planes `top..=p` (one mark per plane): a client fetches `[offset, offset + mark)`.
 //!
@@ -33,11 +40,11 @@ use crate::{Error, Result};
 /// The magic bytes.
 pub const MAGIC: [u8; 4] = *b"SWAV";
 /// The format version (bumped on every format change; the golden-bytes test pins it).
-pub const VERSION: u16 = 5;
+pub const VERSION: u16 = 6;
 /// Bytes of the fixed header fields.
 pub const HEADER_FIELDS: usize = 16 + 8 * 13 + 4 * 4;
-/// Bytes of a chunk index entry without marks.
-const ENTRY: usize = 1 + 4 + 8 + 4 + 4 + 2;
+/// Fewest bytes of a chunk index entry (kind, one-byte id, length and mark count, CRC).
+const ENTRY_MIN: usize = 1 + 1 + 1 + 4 + 1;
 
 /// What a chunk holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -183,15 +190,6 @@ pub fn crc32(data: &[u8]) -> u32 {
     !c
 }
 
-fn varint_len(mut v: u32) -> usize {
-    let mut n = 1;
-    while v >= 0x80 {
-        v >>= 7;
-        n += 1;
-    }
-    n
-}
-
 fn put_varint(out: &mut Vec<u8>, mut v: u32) {
     while v >= 0x80 {
         out.push((v as u8 & 0x7F) | 0x80);
@@ -294,22 +292,10 @@ pub fn write(header: &Header, chunks: &[(ChunkKind, u32, Vec<u8>, Vec<u32>)]) ->
     head.extend_from_slice(&VERSION.to_le_bytes());
     head.extend_from_slice(&[0; 4]); // hlen, patched below
     header.write(&mut head);
-    head.extend_from_slice(&(chunks.len() as u32).to_le_bytes());
-    let marks: usize = chunks
-        .iter()
-        .map(|c| {
-            let mut prev = 0u32;
-            c.3.iter()
-                .map(|&m| {
-                    let n = varint_len(m.wrapping_sub(prev));
-                    prev = m;
-                    n
-                })
-                .sum::<usize>()
-        })
-        .sum();
-    let hlen = head.len() + chunks.len() * ENTRY + marks + 4;
-    let mut offset = hlen as u64;
+    if chunks.len() > u32::MAX as usize {
+        return Err(Error::InvalidArgument("more than 2^32 chunks".into()));
+    }
+    put_varint(&mut head, chunks.len() as u32);
     for (kind, id, data, marks) in chunks {
         if data.len() > u32::MAX as usize || marks.len() > u16::MAX as usize {
             return Err(Error::InvalidArgument(
@@ -317,11 +303,10 @@ pub fn write(header: &Header, chunks: &[(ChunkKind, u32, Vec<u8>, Vec<u32>)]) ->
             ));
         }
         head.push(kind.code());
-        head.extend_from_slice(&id.to_le_bytes());
-        head.extend_from_slice(&offset.to_le_bytes());
-        head.extend_from_slice(&(data.len() as u32).to_le_bytes());
+        put_varint(&mut head, *id);
+        put_varint(&mut head, data.len() as u32);
         head.extend_from_slice(&crc32(data).to_le_bytes());
-        head.extend_from_slice(&(marks.len() as u16).to_le_bytes());
+        put_varint(&mut head, marks.len() as u32);
         let mut prev = 0u32;
         for &m in marks {
             if m < prev || m > data.len() as u32 {
@@ -332,10 +317,9 @@ pub fn write(header: &Header, chunks: &[(ChunkKind, u32, Vec<u8>, Vec<u32>)]) ->
             put_varint(&mut head, m - prev);
             prev = m;
         }
-        offset += data.len() as u64;
     }
-    let hl = (head.len() + 4) as u32;
-    debug_assert_eq!(hl as usize, hlen);
+    let hl = u32::try_from(head.len() + 4)
+        .map_err(|_| Error::InvalidArgument("the chunk index exceeds 4 GiB".into()))?;
     head[6..10].copy_from_slice(&hl.to_le_bytes());
     let c = crc32(&head);
     head.extend_from_slice(&c.to_le_bytes());
@@ -382,13 +366,13 @@ impl<'a> Reader<'a> {
             if b & 0x80 == 0 {
                 return u32::try_from(v).map_err(|_| Error::Decode {
                     offset: self.pos,
-                    message: "chunk index: a plane mark overflows".into(),
+                    message: "chunk index: a number overflows 32 bits".into(),
                 });
             }
         }
         Err(Error::Decode {
             offset: self.pos,
-            message: "chunk index: a plane mark is longer than 5 bytes".into(),
+            message: "chunk index: a number is longer than 5 bytes".into(),
         })
     }
     fn u64(&mut self) -> Result<u64> {
@@ -407,8 +391,8 @@ impl<'a> Reader<'a> {
 ///
 /// # Errors
 /// [`Error::Decode`] naming the field: bad magic, unsupported version, a prefix shorter than
-/// the header, a header CRC mismatch, an index inconsistent with the header length, chunks
-/// overlapping or out of order.
+/// the header, a header CRC mismatch, an index inconsistent with the header length (counts
+/// that do not fit, overlong numbers, marks beyond their chunk, trailing bytes).
 pub fn read(bytes: &[u8]) -> Result<Container> {
     let mut r = Reader {
         data: bytes,
@@ -430,7 +414,7 @@ pub fn read(bytes: &[u8]) -> Result<Container> {
         });
     }
     let hlen = r.u32()? as usize;
-    if hlen < 10 + HEADER_FIELDS + 8 {
+    if hlen < 10 + HEADER_FIELDS + 1 + 4 {
         return Err(Error::Decode {
             offset: 6,
             message: format!("header length {hlen} is too small"),
@@ -462,10 +446,11 @@ pub fn read(bytes: &[u8]) -> Result<Container> {
         pos: 10,
     };
     let header = Header::read(&mut r)?;
-    let n = r.u32()? as usize;
-    if n > (hlen - r.pos) / ENTRY {
+    let at = r.pos;
+    let n = r.varint()? as usize;
+    if n > (r.data.len() - r.pos) / ENTRY_MIN {
         return Err(Error::Decode {
-            offset: r.pos - 4,
+            offset: at,
             message: format!("chunk index: {n} chunks do not fit in the header"),
         });
     }
@@ -478,11 +463,10 @@ pub fn read(bytes: &[u8]) -> Result<Container> {
             offset: at,
             message: format!("chunk index entry {i}: unknown chunk kind {kind}"),
         })?;
-        let id = r.u32()?;
-        let offset = r.u64()?;
-        let len = r.u32()?;
+        let id = r.varint()?;
+        let len = r.varint()?;
         let crc = r.u32()?;
-        let nm = r.u16()? as usize;
+        let nm = r.varint()? as usize;
         if nm > r.data.len() - r.pos {
             return Err(Error::Decode {
                 offset: at,
@@ -504,14 +488,7 @@ pub fn read(bytes: &[u8]) -> Result<Container> {
             }
             marks.push(m);
         }
-        if offset != expected {
-            return Err(Error::Decode {
-                offset: at,
-                message: format!(
-                    "chunk index entry {i}: offset {offset}, expected {expected} (chunks are contiguous)"
-                ),
-            });
-        }
+        let offset = expected;
         expected = offset + len as u64;
         chunks.push(ChunkEntry {
             kind,
@@ -625,5 +602,38 @@ mod tests {
         for cut in 0..c.header_len {
             assert!(read(&s[..cut]).is_err());
         }
+        // Offsets are derived from the lengths; an entry costs 8 bytes plus its marks.
+        assert_eq!(c.chunks[0].offset, c.header_len as u64);
+        assert_eq!(c.chunks[1].offset, c.header_len as u64 + 3);
+        assert_eq!(c.header_len, 10 + HEADER_FIELDS + 1 + 8 + 8 + 2 + 4);
+    }
+
+    #[test]
+    fn malformed_index_numbers_are_errors() {
+        let s = write(&header(), &[(ChunkKind::Base, 0, vec![1, 2, 3], vec![])]).unwrap();
+        let at = 10 + HEADER_FIELDS;
+        // Rewrites the index bytes after `at` and fixes the header CRC, so that only the
+        // index itself is wrong.
+        let patch = |index: &[u8]| {
+            let mut b = s[..at].to_vec();
+            b.extend_from_slice(index);
+            let hl = (b.len() + 4) as u32;
+            b[6..10].copy_from_slice(&hl.to_le_bytes());
+            let c = crc32(&b);
+            b.extend_from_slice(&c.to_le_bytes());
+            read(&b).unwrap_err().to_string()
+        };
+        let e = patch(&[0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0x01]);
+        assert!(e.contains("longer than 5 bytes"), "{e}");
+        let e = patch(&[0xFF, 0xFF, 0xFF, 0xFF, 0x7F]);
+        assert!(e.contains("overflows"), "{e}");
+        let e = patch(&[100, 0, 0, 3, 0, 0, 0, 0, 0]);
+        assert!(e.contains("do not fit"), "{e}");
+        let e = patch(&[1, 9, 0, 3, 0, 0, 0, 0, 0]);
+        assert!(e.contains("unknown chunk kind"), "{e}");
+        let e = patch(&[1, 0, 0, 3, 0, 0, 0, 0, 1, 4]);
+        assert!(e.contains("marks"), "{e}");
+        let e = patch(&[1, 0, 0, 3, 0, 0, 0, 0, 0, 0]);
+        assert!(e.contains("trailing"), "{e}");
     }
 }
