@@ -154,7 +154,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     let stages = prepared.remeshed.as_ref().map(|r| {
         let t = &r.timings;
         format!(
-            "remesh {:.0} ms (prepare {:.0}, simplify {:.0}, parameterize {:.0}, resample {:.0}, relax {:.0}), {} {:.0} ms, ",
+            "remesh {:.0} ms (prepare {:.0}, simplify {:.0}, parameterize {:.0}, resample {:.0}, relax {:.0}), {} {:.0} ms, distance {:.0} ms, ",
             t.total_ms,
             t.prepare_ms,
             t.simplify_ms,
@@ -163,7 +163,8 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
             t.relax_ms,
             // What follows the remesh: the normal re-sampling, if it ran.
             if prepared.normal.is_some() { "normal" } else { "hand-over" },
-            prepare_ms - t.total_ms
+            prepare_ms - t.total_ms - prepared.distance_ms,
+            prepared.distance_ms
         )
     });
     if let Some(r) = &prepared.remeshed {
@@ -176,8 +177,8 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     if let Some(n) = &prepared.normal {
         println!("{}", print::normal_stats(n));
     }
-    if let Some(d) = &prepared.remesh_distance {
-        println!("{}", print::remesh_distance(d));
+    if let Some(rms) = prepared.remesh_rms {
+        println!("{}", print::remesh_distance(rms, mesh.diagonal()));
     }
     let mut opts = prepared.encode_options();
     let h = prepared.hierarchy;

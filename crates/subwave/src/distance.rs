@@ -229,6 +229,36 @@ pub fn distance(a: &Mesh, b: &Mesh, samples: usize) -> Result<Distance> {
     })
 }
 
+/// The larger of the two one-sided RMS distances between `a` and `b` from `samples` area
+/// samples per surface, without the vertex queries and the Hausdorff distance of
+/// [`distance`]: a cheaper estimate of [`Distance::rms`] (for tolerances, e.g. how close a
+/// remesh is to its input).
+///
+/// # Errors
+/// As [`distance`].
+pub fn sampled_rms(a: &Mesh, b: &Mesh, samples: usize) -> Result<f64> {
+    let ta = triangles(a, "A")?;
+    let tb = triangles(b, "B")?;
+    let sa = sample_surface(&a.positions, &ta, samples);
+    let sb = sample_surface(&b.positions, &tb, samples);
+    let (qa, qb) = rayon::join(
+        || ClosestPoint::from_triangles(&a.positions, ta),
+        || ClosestPoint::from_triangles(&b.positions, tb),
+    );
+    let (qa, qb) = (qa?, qb?);
+    let rms = |s: &[DVec3], q: &ClosestPoint| {
+        let sum: f64 = s
+            .par_iter()
+            .map(|&p| {
+                let d = q.distance(p);
+                d * d
+            })
+            .sum();
+        (sum / s.len().max(1) as f64).sqrt()
+    };
+    Ok(rms(&sa, &qb).max(rms(&sb, &qa)))
+}
+
 /// `20 log10(diagonal / rms)` dB; infinite for `rms == 0`.
 pub fn psnr(diagonal: f64, rms: f64) -> f64 {
     if rms > 0.0 {

@@ -8,7 +8,7 @@
 //! "Decimation in meshes", Bertram §5.3).
 
 use crate::codec::progressive::{EncodeOptions, Wavelet};
-use crate::distance::{distance, Distance};
+use crate::distance::sampled_rms;
 use crate::hierarchy::Hierarchy;
 use crate::mesh::Mesh;
 use crate::remesh::normal::{normal_resample_on, NormalOptions, NormalStats, NormalSurface};
@@ -23,8 +23,8 @@ pub const FACE_RATIO: usize = 2;
 pub const MAX_DEFAULT_LEVELS: u32 = 6;
 /// Default base faces of the remesh of an irregular input.
 pub const DEFAULT_BASE_FACES: usize = 200;
-/// Area samples per surface of [`Prepared::remesh_distance`].
-pub const REMESH_SAMPLES: usize = 40_000;
+/// Area samples per surface of [`Prepared::remesh_rms`].
+pub const REMESH_SAMPLES: usize = 20_000;
 /// The quantization error [`Prepared::encode_options`] allows, as a share of the remesh's
 /// own RMS distance to the input ([`EncodeOptions::max_rms`]): the two errors add roughly
 /// in quadrature, so the full stream is at most `sqrt(1 + share²)` times further from the
@@ -82,9 +82,12 @@ pub struct Prepared {
     pub remeshed: Option<Remeshed>,
     /// What the normal re-sampling did, if it ran ([`PrepareOptions::normal`]).
     pub normal: Option<NormalStats>,
-    /// The distance between the input and the hierarchy's finest level, if the input was
-    /// remeshed ([`REMESH_SAMPLES`] area samples per surface).
-    pub remesh_distance: Option<Distance>,
+    /// The RMS distance between the input and the hierarchy's finest level (the larger
+    /// one-sided one, [`sampled_rms`] with [`REMESH_SAMPLES`] area samples per surface), if
+    /// the input was remeshed.
+    pub remesh_rms: Option<f64>,
+    /// Milliseconds spent measuring [`Prepared::remesh_rms`].
+    pub distance_ms: f64,
 }
 
 impl Prepared {
@@ -99,8 +102,8 @@ impl Prepared {
             o.lifted = false;
         }
         o.max_rms = self
-            .remesh_distance
-            .map(|d| d.rms * QUANTIZATION_SHARE)
+            .remesh_rms
+            .map(|d| d * QUANTIZATION_SHARE)
             .filter(|t| *t > 0.0);
         o
     }
@@ -134,7 +137,8 @@ pub fn prepare(
                 hierarchy,
                 remeshed: None,
                 normal: None,
-                remesh_distance: None,
+                remesh_rms: None,
+                distance_ms: 0.0,
             });
         }
     }
@@ -177,13 +181,16 @@ pub fn prepare(
         progress("normal", 1.0);
     }
     progress("distance", 0.0);
-    let remesh_distance = Some(distance(mesh, &r.mesh, REMESH_SAMPLES)?);
+    let t = std::time::Instant::now();
+    let remesh_rms = Some(sampled_rms(mesh, &r.mesh, REMESH_SAMPLES)?);
+    let distance_ms = t.elapsed().as_secs_f64() * 1e3;
     progress("distance", 1.0);
     Ok(Prepared {
         hierarchy: r.hierarchy.clone(),
         remeshed: Some(r),
         normal,
-        remesh_distance,
+        remesh_rms,
+        distance_ms,
     })
 }
 
@@ -271,11 +278,11 @@ mod tests {
             ..Default::default()
         };
         let p = prepare(&m, &opts, &mut |_, _| {}).unwrap();
-        let d = p.remesh_distance.expect("remeshed input has a distance");
-        assert!(d.rms > 0.0 && d.rms < 0.01 * d.diagonal, "{d:?}");
+        let d = p.remesh_rms.expect("remeshed input has a distance");
+        assert!(d > 0.0 && d < 0.01 * m.diagonal(), "{d}");
         let o = p.encode_options();
         let tol = o.max_rms.expect("a remesh sets max_rms");
-        assert_eq!(tol, d.rms * QUANTIZATION_SHARE);
+        assert_eq!(tol, d * QUANTIZATION_SHARE);
         let (bytes, sh) = encode_with_info(&p.hierarchy, &o).unwrap();
         let planes = inspect(&bytes).unwrap().bits;
         assert!(planes < o.bits, "{planes} planes of {}", o.bits);
@@ -317,7 +324,7 @@ mod tests {
             &mut |_, _| {},
         )
         .unwrap();
-        assert!(sr.remesh_distance.is_none() && sr.encode_options().max_rms.is_none());
+        assert!(sr.remesh_rms.is_none() && sr.encode_options().max_rms.is_none());
     }
 
     #[test]
