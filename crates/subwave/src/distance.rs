@@ -322,6 +322,12 @@ mod tests {
         let d = distance(&a, &b, 20_000).unwrap();
         assert!(d.rms_ba < 1e-12, "{d:?}");
         assert!(d.rms_ab > 0.5 && (d.max - 2.0).abs() < 1e-9, "{d:?}");
+        // The sampled estimate is the larger one-sided RMS of the same samples, both ways.
+        for r in [sampled_rms(&a, &b, 20_000), sampled_rms(&b, &a, 20_000)] {
+            let r = r.unwrap();
+            assert!((r - d.rms).abs() <= 1e-12 * d.rms, "{r} vs {}", d.rms);
+        }
+        assert_eq!(sampled_rms(&a, &a, 5_000).unwrap(), 0.0);
     }
 
     #[test]
