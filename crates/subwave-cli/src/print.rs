@@ -241,10 +241,10 @@ pub fn normal_stats(n: &subwave::remesh::normal::NormalStats) -> String {
     )
 }
 
-/// The line `subwave encode` prints for the distance between the input and its remesh.
+/// The line `subwave encode` prints for the distance from the remesh to the input.
 pub fn remesh_distance(rms: f64, diagonal: f64) -> String {
     format!(
-        "remesh: {:.2} dB against the input (RMS {rms:.4e}); bit planes below a quantization error of {:.0}% of it are not coded",
+        "remesh: {:.2} dB from the remesh to the input (one-sided RMS {rms:.4e}); bit planes below a quantization error of {:.0}% of it are not coded",
         subwave::distance::psnr(diagonal, rms),
         100.0 * subwave::codec::prepare::QUANTIZATION_SHARE
     )

@@ -8,7 +8,7 @@
 //! "Decimation in meshes", Bertram §5.3).
 
 use crate::codec::progressive::{EncodeOptions, Wavelet};
-use crate::distance::sampled_rms;
+use crate::distance::{sampled_rms_to, ClosestPoint};
 use crate::hierarchy::Hierarchy;
 use crate::mesh::Mesh;
 use crate::remesh::normal::{normal_resample_on, NormalOptions, NormalStats, NormalSurface};
@@ -23,7 +23,7 @@ pub const FACE_RATIO: usize = 2;
 pub const MAX_DEFAULT_LEVELS: u32 = 6;
 /// Default base faces of the remesh of an irregular input.
 pub const DEFAULT_BASE_FACES: usize = 200;
-/// Area samples per surface of [`Prepared::remesh_rms`].
+/// Area samples of [`Prepared::remesh_rms`].
 pub const REMESH_SAMPLES: usize = 20_000;
 /// The quantization error [`Prepared::encode_options`] allows, as a share of the remesh's
 /// own RMS distance to the input ([`EncodeOptions::max_rms`]): the two errors add roughly
@@ -82,9 +82,10 @@ pub struct Prepared {
     pub remeshed: Option<Remeshed>,
     /// What the normal re-sampling did, if it ran ([`PrepareOptions::normal`]).
     pub normal: Option<NormalStats>,
-    /// The RMS distance between the input and the hierarchy's finest level (the larger
-    /// one-sided one, [`sampled_rms`] with [`REMESH_SAMPLES`] area samples per surface), if
-    /// the input was remeshed.
+    /// The RMS distance from the hierarchy's finest level to the input
+    /// ([`sampled_rms_to`] with [`REMESH_SAMPLES`] area samples), if the input was remeshed.
+    /// One-sided: PSNR takes the larger of both directions, so this may underestimate the
+    /// remesh's error, which only makes [`Prepared::encode_options`] keep more bit planes.
     pub remesh_rms: Option<f64>,
     /// Milliseconds spent measuring [`Prepared::remesh_rms`].
     pub distance_ms: f64,
@@ -155,20 +156,24 @@ pub fn prepare(
         ..RemeshOptions::default()
     };
     let run_normal = opts.normal.unwrap_or(opts.sharp_angle.is_none()) && !opts.quads;
-    // The normal re-sampling's index of the input is built beside the remesh.
-    let (r, surface) = std::thread::scope(|scope| {
-        let surface = run_normal.then(|| {
-            scope.spawn(|| {
+    // The normal re-sampling's index of the input, and the one that measures the remesh's
+    // distance, are built beside the remesh.
+    let (r, surface, input_bvh) = std::thread::scope(|scope| {
+        let indexes = scope.spawn(|| {
+            let surface = run_normal.then(|| {
                 let tris: Vec<[u32; 3]> = mesh
                     .faces()
                     .flat_map(|f| (2..f.len()).map(move |k| [f[0], f[k - 1], f[k]]))
                     .collect();
                 NormalSurface::new(&mesh.positions, &tris)
-            })
+            });
+            (surface, ClosestPoint::new(mesh))
         });
         let r = remesh_with_progress(mesh, &ro, progress);
-        let surface = surface.map(|s| s.join().unwrap_or_else(|e| std::panic::resume_unwind(e)));
-        (r, surface)
+        let (surface, bvh) = indexes
+            .join()
+            .unwrap_or_else(|e| std::panic::resume_unwind(e));
+        (r, surface, bvh)
     });
     let mut r = r?;
     let mut normal = None;
@@ -182,7 +187,7 @@ pub fn prepare(
     }
     progress("distance", 0.0);
     let t = std::time::Instant::now();
-    let remesh_rms = Some(sampled_rms(mesh, &r.mesh, REMESH_SAMPLES)?);
+    let remesh_rms = Some(sampled_rms_to(&r.mesh, &input_bvh?, REMESH_SAMPLES)?);
     let distance_ms = t.elapsed().as_secs_f64() * 1e3;
     progress("distance", 1.0);
     Ok(Prepared {
