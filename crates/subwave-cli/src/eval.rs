@@ -185,6 +185,8 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             "input_vertices": mesh.num_vertices(),
             "remeshed": prep.remeshed.is_some(),
             "method": prep.remeshed.as_ref().map(|r| r.method.name()),
+            "normal_mesh": prep.normal.is_some(),
+            "remesh_rms": prep.remesh_rms,
             "levels": h.levels(),
             "base_faces": h.base.num_faces(),
             "coded_vertices": h.positions.len(),
@@ -208,6 +210,9 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         "{name}: {} vertices; {}{} levels over {} base faces -> {} vertices; {} wavelet; {} bytes in {:.0} ms",
         mesh.num_vertices(),
         match &prep.remeshed {
+            Some(r) if prep.normal.is_some() => {
+                format!("remeshed ({}, normal mesh), ", r.method.name())
+            }
             Some(r) => format!("remeshed ({}), ", r.method.name()),
             None => String::new(),
         },
