@@ -27,6 +27,7 @@
 
 use rayon::prelude::*;
 
+use super::triangle::{edge_face_count, UpdatePlan};
 use crate::hierarchy::Hierarchy;
 use crate::subdivision::refine::Split;
 use crate::subdivision::stencil::StencilTable;
@@ -46,6 +47,7 @@ const CHUNK: usize = 8192;
 pub struct IntTriangleWavelet<'h> {
     h: &'h Hierarchy,
     tables: Vec<StencilTable>,
+    update_plan: UpdatePlan,
     lifted: bool,
 }
 
@@ -101,6 +103,11 @@ impl<'h> IntTriangleWavelet<'h> {
         Ok(IntTriangleWavelet {
             h,
             tables: r.stencils,
+            update_plan: if lifted {
+                UpdatePlan::new(h)
+            } else {
+                UpdatePlan::default()
+            },
             lifted,
         })
     }
@@ -221,16 +228,12 @@ impl<'h> IntTriangleWavelet<'h> {
     /// `even[v] += sign · ⌊3 Σ φ_e d_e / (8 f_v) + ½⌋`, exactly.
     fn update(&self, level: usize, even: &mut [[i64; 3]], odd: &[[i64; 3]], sign: i64) {
         let t = self.h.topology(level);
-        even.par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
-            for (i, x) in out.iter_mut().enumerate() {
-                let v = c * CHUNK + i;
-                let f = t.vertex_faces(v).len() as i64;
-                if f == 0 {
-                    continue;
-                }
+        self.update_plan
+            .for_each(t, level, even, |x, nf, edges, phi| {
+                let f = nf as i64;
                 let mut s = [0i64; 3];
-                for &e in t.vertex_edges(v) {
-                    let phi = t.edge_faces(e as usize).len() as i64;
+                for (k, &e) in edges.iter().enumerate() {
+                    let phi = edge_face_count(t, phi, k, e) as i64;
                     let d = odd[e as usize];
                     for q in 0..3 {
                         s[q] += phi * d[q];
@@ -246,8 +249,7 @@ impl<'h> IntTriangleWavelet<'h> {
                 for q in 0..3 {
                     x[q] += sign * r(6 * s[q]);
                 }
-            }
-        });
+            });
     }
 }
 
