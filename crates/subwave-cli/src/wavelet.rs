@@ -150,12 +150,14 @@ fn write_human(out: &mut dyn Write, name: &str, r: &WaveletReport) -> std::io::R
     )?;
     writeln!(
         out,
-        "  in place, median of {} run(s): forward {:.3} ms ({:.1} Mvert/s), inverse {:.3} ms ({:.1} Mvert/s); plan {:.3} ms",
+        "  in place, median of {} run(s): forward {:.3} ms ({:.1} Mvert/s, fastest {:.3} ms), inverse {:.3} ms ({:.1} Mvert/s, fastest {:.3} ms); plan {:.3} ms",
         r.runs,
         r.forward_ms,
         r.forward_mvert_per_s,
+        r.forward_min_ms,
         r.inverse_ms,
         r.inverse_mvert_per_s,
+        r.inverse_min_ms,
         r.plan_ms
     )
 }
