@@ -350,6 +350,11 @@ impl<'h> TriangleWavelet<'h> {
         &self.tables
     }
 
+    /// The prediction tables, by value.
+    pub(crate) fn into_tables(self) -> Vec<StencilTable> {
+        self.tables
+    }
+
     fn check_level(&self, level: usize) -> Result<()> {
         if level >= self.tables.len() {
             return Err(Error::InvalidArgument(format!(
