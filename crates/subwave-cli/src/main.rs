@@ -285,6 +285,9 @@ pub struct WaveletArgs {
     /// base_vertices, base_faces, ...).
     #[arg(long)]
     pub json: bool,
+    /// Timed runs of each direction of the in-place transform (the median is reported).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=1000))]
+    pub runs: u64,
 }
 
 /// Arguments of `subwave stability`.

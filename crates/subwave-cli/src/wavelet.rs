@@ -5,7 +5,7 @@ use std::io::Write;
 
 use anyhow::Result;
 use subwave::io::read_mesh;
-use subwave::wavelet::report::{analyze_report, WaveletKind, WaveletReport};
+use subwave::wavelet::report::{analyze_report_with, ReportOptions, WaveletKind, WaveletReport};
 use subwave::wavelet::triangle::DetailFrame;
 
 use crate::info::check;
@@ -81,7 +81,11 @@ pub fn run(args: &WaveletArgs) -> Result<()> {
         FramesArg::Local => DetailFrame::Local,
         FramesArg::Global => DetailFrame::Global,
     };
-    let rep = analyze_report(&mesh, args.wavelet.into(), frame)
+    let opts = ReportOptions {
+        frame,
+        runs: args.runs as usize,
+    };
+    let rep = analyze_report_with(&mesh, args.wavelet.into(), &opts)
         .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
@@ -141,7 +145,19 @@ fn write_human(out: &mut dyn Write, name: &str, r: &WaveletReport) -> std::io::R
     }
     writeln!(
         out,
-        "  reconstruction max error {:.3e}; forward {:.3} ms, inverse {:.3} ms",
-        r.reconstruction_max_error, r.forward_ms, r.inverse_ms
+        "  reconstruction max error {:.3e}",
+        r.reconstruction_max_error
+    )?;
+    writeln!(
+        out,
+        "  in place, median of {} run(s): forward {:.3} ms ({:.1} Mvert/s, fastest {:.3} ms), inverse {:.3} ms ({:.1} Mvert/s, fastest {:.3} ms); plan {:.3} ms",
+        r.runs,
+        r.forward_ms,
+        r.forward_mvert_per_s,
+        r.forward_min_ms,
+        r.inverse_ms,
+        r.inverse_mvert_per_s,
+        r.inverse_min_ms,
+        r.plan_ms
     )
 }

@@ -143,7 +143,25 @@ fn triangle_wavelets() {
         text.contains("butterfly wavelet") && text.contains("reconstruction max error"),
         "{text}"
     );
-    assert_eq!(text.lines().count(), 3 + 1 + 5 + 1 - 1, "{text}");
+    // Header (2 lines), table head, 5 levels, reconstruction error, timings.
+    assert_eq!(text.lines().count(), 2 + 1 + 5 + 1 + 1, "{text}");
+    assert!(text.contains("median of 1 run(s)"), "{text}");
+    // Several timed runs: the median, runs and throughputs in the JSON.
+    let o = run(&[
+        "wavelet",
+        &path,
+        "--wavelet",
+        "butterfly-lifted",
+        "--runs",
+        "3",
+        "--json",
+    ]);
+    assert_eq!(o.status.code(), Some(0));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["runs"].as_u64(), Some(3));
+    for k in ["plan_ms", "forward_mvert_per_s", "inverse_mvert_per_s"] {
+        assert!(v[k].as_f64().unwrap() >= 0.0, "{k}");
+    }
 }
 
 #[test]

@@ -507,6 +507,8 @@ fn check_total(sizes: &[usize], len: usize) -> Result<()> {
 struct Ctx<'a> {
     t: &'a Topology,
     symmetric: bool,
+    /// Integer lifts try `i64` arithmetic first (false: `i128` only, the reference in tests).
+    int64: bool,
 }
 
 /// `Σ w_i x_i / den` as integer weights: `ē_v` under the boundary rule.
@@ -586,6 +588,49 @@ fn round_div(n: i128, d: i128) -> i128 {
     (2 * n + d).div_euclid(2 * d)
 }
 
+/// [`round_div`] in `i64`, `None` on overflow (`d > 0`). `⌊x / (2^k c)⌋ = ⌊⌊x / 2^k⌋ / c⌋`:
+/// a shift, then a division by the odd part `c` of `2d`, by a constant for the common
+/// denominators (valence 3–6 and Table 1's `a`).
+#[inline]
+fn round_div64(n: i64, d: i64) -> Option<i64> {
+    let x = n.checked_mul(2)?.checked_add(d)?;
+    let den = d.checked_mul(2)?;
+    let k = den.trailing_zeros();
+    let (y, c) = (x >> k, den >> k);
+    Some(match c {
+        1 => y,
+        3 => y.div_euclid(3),
+        5 => y.div_euclid(5),
+        9 => y.div_euclid(9),
+        15 => y.div_euclid(15),
+        25 => y.div_euclid(25),
+        27 => y.div_euclid(27),
+        45 => y.div_euclid(45),
+        81 => y.div_euclid(81),
+        _ => y.div_euclid(c),
+    })
+}
+
+/// `x` as `i64` (`None` if it does not fit).
+#[inline]
+fn to64<I: IntCoord>(x: I) -> Option<i64> {
+    let y: i128 = x.into();
+    i64::try_from(y).ok()
+}
+
+/// [`isum`] in `i64`, `None` on overflow.
+#[inline]
+fn isum64<I: IntCoord>(idx: &[u32], data: &[[I; 3]]) -> Option<([i64; 3], i64)> {
+    let mut s = [0i64; 3];
+    for &i in idx {
+        let x = data[i as usize];
+        for k in 0..3 {
+            s[k] = s[k].checked_add(to64(x[k])?)?;
+        }
+    }
+    Some((s, idx.len().max(1) as i64))
+}
+
 /// Runs `f(i, &mut out[i])` over `out` in parallel.
 #[inline]
 fn par_update<T: Send, F: Fn(usize, &mut T) + Sync + Send>(out: &mut [T], f: F) {
@@ -645,6 +690,7 @@ impl<'a> Ctx<'a> {
         Ctx {
             t,
             symmetric: boundary == Boundary::Symmetric,
+            int64: true,
         }
     }
 
@@ -692,6 +738,28 @@ impl<'a> Ctx<'a> {
             y.add_scaled(&e[x as usize], k);
         }
         y
+    }
+
+    /// [`Ctx::e_bar_v_int`] in `i64`, `None` on overflow.
+    #[inline]
+    fn e_bar_v_int64<I: IntCoord>(&self, v: usize, e: &[[I; 3]]) -> Option<([i64; 3], i64)> {
+        if !self.symmetric {
+            return isum64(self.t.vertex_edges(v), e);
+        }
+        let w = self.edge_weights(v);
+        let mut s = [0i64; 3];
+        for &x in self.t.vertex_edges(v) {
+            let k = if self.t.is_boundary_edge(x as usize) {
+                w.boundary
+            } else {
+                w.interior
+            };
+            let c = e[x as usize];
+            for j in 0..3 {
+                s[j] = s[j].checked_add(k.checked_mul(to64(c[j])?)?)?;
+            }
+        }
+        Some((s, w.den))
     }
 
     /// `ē_v` as an exact weighted sum and its denominator.
@@ -863,8 +931,59 @@ impl<'a> Ctx<'a> {
             });
             store(y, x, &o, i);
         };
+        // The same in `i64` (every table here has `b = 1`), `None` on overflow: the caller
+        // then takes the `i128` path, which gives the same result or reports the overflow.
+        let fast = self.int64 && b == 1 && i64::try_from(p).is_ok() && i64::try_from(q).is_ok();
+        let (p64, q64) = (p as i64, q as i64);
+        let term2_64 = |sx: [i64; 3], dx: i64, sy: [i64; 3], dy: i64| -> Option<[i64; 3]> {
+            let den = q64.checked_mul(q64)?.checked_mul(dx)?.checked_mul(dy)?;
+            let cx = p64.checked_mul(4 * p64)?.checked_mul(dy)?;
+            let cy = p64.checked_mul(4 * q64)?.checked_mul(dx)?;
+            let mut r = [0i64; 3];
+            for k in 0..3 {
+                let n = sx[k].checked_mul(cx)?.checked_add(sy[k].checked_mul(cy)?)?;
+                r[k] = round_div64(n, den)?;
+            }
+            Some(r)
+        };
+        let term1_64 = |sx: [i64; 3], dx: i64| -> Option<[i64; 3]> {
+            let den = q64.checked_mul(dx)?;
+            let c = p64.checked_mul(2)?;
+            let mut r = [0i64; 3];
+            for k in 0..3 {
+                r[k] = round_div64(sx[k].checked_mul(c)?, den)?;
+            }
+            Some(r)
+        };
+        // `x ± r` for `b = 1`; false (and `x` untouched) if it does not fit.
+        let apply64 = |x: &mut [I; 3], r: [i64; 3]| -> bool {
+            let mut y = [x[0]; 3];
+            for k in 0..3 {
+                let Some(c) = to64(x[k]) else { return false };
+                let z = if inverse {
+                    c.checked_sub(r[k])
+                } else {
+                    c.checked_add(r[k])
+                };
+                match z.and_then(|z| I::try_from(z as i128).ok()) {
+                    Some(z) => y[k] = z,
+                    None => return false,
+                }
+            }
+            *x = y;
+            true
+        };
         let vertex_pass = |v: &mut [[I; 3]], e: &[[I; 3]], f: &[[I; 3]]| {
             par_update(v, |i, x| {
+                if fast {
+                    let r = isum64(t.vertex_faces(i), f).and_then(|(sf, df)| {
+                        let (se, de) = self.e_bar_v_int64(i, e)?;
+                        term2_64(sf, df, se, de)
+                    });
+                    if r.is_some_and(|r| apply64(x, r)) {
+                        return;
+                    }
+                }
                 let (sf, df) = isum(t.vertex_faces(i), f);
                 let (se, de) = self.e_bar_v_int(i, e);
                 apply(x, term2(sf, df, se, de), b * b, i);
@@ -872,6 +991,15 @@ impl<'a> Ctx<'a> {
         };
         let face_pass = |f: &mut [[I; 3]], v: &[[I; 3]], e: &[[I; 3]]| {
             par_update(f, |i, x| {
+                if fast {
+                    let r = isum64(t.face_vertices(i), v).and_then(|(sv, dv)| {
+                        let (se, de) = isum64(t.face_edges(i), e)?;
+                        term2_64(sv, dv, se, de)
+                    });
+                    if r.is_some_and(|r| apply64(x, r)) {
+                        return;
+                    }
+                }
                 let (sv, dv) = isum(t.face_vertices(i), v);
                 let (se, de) = isum(t.face_edges(i), e);
                 apply(x, term2(sv, dv, se, de), b * b, nv + ne + i);
@@ -884,6 +1012,12 @@ impl<'a> Ctx<'a> {
                 } else {
                     &t.edge_vertices[i]
                 };
+                if fast {
+                    let r = isum64(idx, src).and_then(|(s, d)| term1_64(s, d));
+                    if r.is_some_and(|r| apply64(x, r)) {
+                        return;
+                    }
+                }
                 let (s, d) = isum(idx, src);
                 apply(x, term1(s, d), b, nv + i);
             });

@@ -23,9 +23,14 @@
 //!   the quantized finest mesh, divided by `s` (model units). The reconstruction error is then
 //!   exactly 0. Integer detail magnitudes are reported divided by `s` too, in the transform's
 //!   own scaling (the §4.3 rescaling shrinks the coarse coefficients, not the details).
-//! - **Timings**: `forward_ms` is the level-by-level analysis including the copy of each
-//!   low-pass level (one memcpy per level, negligible); `inverse_ms` the full synthesis from the
-//!   base and all details. Detection and quantization are not timed.
+//! - **Timings** (separate from the statistics above, which use the allocating level-by-level
+//!   transforms): `forward_ms` is the median over [`ReportOptions::runs`] runs of the full
+//!   analysis *in place* on the finest level already in memory (the buffer is allocated and
+//!   filled outside the timed region), `inverse_ms` the median of the full synthesis in place
+//!   from the flat layout `[base | details …]`. The plan of the transform — the prediction
+//!   tables of the triangle wavelets, the per-level index tables of the B-spline wavelets —
+//!   is built once per hierarchy before, and timed separately as `plan_ms`. File I/O,
+//!   hierarchy detection and quantization are never timed.
 //! - Detail magnitudes are Euclidean norms; with local frames ([`DetailFrame::Local`],
 //!   triangle wavelets only) the frames are orthonormal, so the norms are the same.
 
@@ -207,10 +212,41 @@ pub struct WaveletReport {
     /// Maximum vertex distance between the input and its analysis followed by synthesis
     /// (model units; 0 exactly for the integer transforms).
     pub reconstruction_max_error: f64,
-    /// Wall time of the forward transform (ms).
+    /// Wall time of building the transform's plan once for the hierarchy (ms; see the module
+    /// documentation).
+    pub plan_ms: f64,
+    /// Number of timed runs of each direction.
+    pub runs: usize,
+    /// Median wall time of the in-place forward transform of the whole hierarchy (ms).
     pub forward_ms: f64,
-    /// Wall time of the inverse transform (ms).
+    /// Median wall time of the in-place inverse transform of the whole hierarchy (ms).
     pub inverse_ms: f64,
+    /// Fastest of the timed forward runs (ms; the least disturbed on a shared machine).
+    pub forward_min_ms: f64,
+    /// Fastest of the timed inverse runs (ms).
+    pub inverse_min_ms: f64,
+    /// Finest-level vertices per second of the forward transform (millions).
+    pub forward_mvert_per_s: f64,
+    /// Finest-level vertices per second of the inverse transform (millions).
+    pub inverse_mvert_per_s: f64,
+}
+
+/// Options of [`analyze_report_with`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReportOptions {
+    /// Detail frame of the triangle wavelets.
+    pub frame: DetailFrame,
+    /// Timed runs of each direction (at least 1; the median is reported).
+    pub runs: usize,
+}
+
+impl Default for ReportOptions {
+    fn default() -> Self {
+        ReportOptions {
+            frame: DetailFrame::Global,
+            runs: 1,
+        }
+    }
 }
 
 /// Per-level results of one transform, before the statistics.
@@ -221,17 +257,69 @@ struct Run {
     detail_norms: Vec<Vec<f64>>,
     reconstructed: Vec<DVec3>,
     reference: Vec<DVec3>,
+    timing: Timing,
+}
+
+/// Plan time and median in-place transform times.
+struct Timing {
+    plan_ms: f64,
     forward_ms: f64,
     inverse_ms: f64,
+    forward_min_ms: f64,
+    inverse_min_ms: f64,
 }
 
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 
+fn median(mut x: Vec<f64>) -> f64 {
+    x.sort_by(f64::total_cmp);
+    let n = x.len();
+    if n == 0 {
+        0.0
+    } else if n % 2 == 1 {
+        x[n / 2]
+    } else {
+        0.5 * (x[n / 2 - 1] + x[n / 2])
+    }
+}
+
+/// Median times of `runs` in-place forward and inverse transforms of `input`: each run copies
+/// `input` into a buffer allocated once (untimed), then times `forward` on it, then `inverse`
+/// on the coefficients it left.
+fn time_in_place<T: Copy>(
+    input: &[T],
+    runs: usize,
+    plan_ms: f64,
+    mut forward: impl FnMut(&mut [T]) -> Result<()>,
+    mut inverse: impl FnMut(&mut [T]) -> Result<()>,
+) -> Result<Timing> {
+    let mut buf = input.to_vec();
+    let (mut f, mut i) = (Vec::new(), Vec::new());
+    for _ in 0..runs.max(1) {
+        buf.copy_from_slice(input);
+        let t = Instant::now();
+        forward(&mut buf)?;
+        f.push(ms(t));
+        let t = Instant::now();
+        inverse(&mut buf)?;
+        i.push(ms(t));
+    }
+    let min = |x: &[f64]| x.iter().copied().fold(f64::INFINITY, f64::min);
+    Ok(Timing {
+        plan_ms,
+        forward_min_ms: min(&f),
+        inverse_min_ms: min(&i),
+        forward_ms: median(f),
+        inverse_ms: median(i),
+    })
+}
+
 /// Detects the semi-regular structure of `mesh`, runs `kind` on it and reports per-level
 /// approximation errors, detail statistics, reconstruction error and timings (see the module
-/// documentation for the choices). `frame` applies to the triangle wavelets.
+/// documentation for the choices). `frame` applies to the triangle wavelets. One timed run:
+/// [`analyze_report_with`] with [`ReportOptions::runs`] = 1.
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] if the wavelet does not fit the mesh (triangle wavelets on a
@@ -239,6 +327,19 @@ fn ms(t: Instant) -> f64 {
 /// asked for a B-spline wavelet; [`Error::Hierarchy`] / [`Error::Mesh`] from
 /// [`Hierarchy::detect`] if the mesh has no subdivision connectivity; the transforms' errors.
 pub fn analyze_report(mesh: &Mesh, kind: WaveletKind, frame: DetailFrame) -> Result<WaveletReport> {
+    analyze_report_with(mesh, kind, &ReportOptions { frame, runs: 1 })
+}
+
+/// [`analyze_report`] with the median of `opts.runs` timed runs of each direction.
+///
+/// # Errors
+/// As [`analyze_report`].
+pub fn analyze_report_with(
+    mesh: &Mesh,
+    kind: WaveletKind,
+    opts: &ReportOptions,
+) -> Result<WaveletReport> {
+    let (frame, runs) = (opts.frame, opts.runs.max(1));
     let want = kind.split();
     let (quads, tris) = (mesh.is_quad_mesh(), mesh.is_triangle_mesh());
     let mismatch = |what: &str, fits: Split| {
@@ -280,10 +381,10 @@ pub fn analyze_report(mesh: &Mesh, kind: WaveletKind, frame: DetailFrame) -> Res
         )));
     }
     let run = match kind.bspline() {
-        None if int_triangle => run_triangle_int(&h, kind)?,
-        None => run_triangle(&h, kind, frame)?,
-        Some((degree, false)) => run_bspline(&h, degree)?,
-        Some((degree, true)) => run_bspline_int(&h, degree)?,
+        None if int_triangle => run_triangle_int(&h, kind, runs)?,
+        None => run_triangle(&h, kind, frame, runs)?,
+        Some((degree, false)) => run_bspline(&h, degree, runs)?,
+        Some((degree, true)) => run_bspline_int(&h, degree, runs)?,
     };
     let diagonal = mesh.diagonal();
     let dist = |a: &[DVec3]| -> (f64, f64) {
@@ -345,29 +446,41 @@ pub fn analyze_report(mesh: &Mesh, kind: WaveletKind, frame: DetailFrame) -> Res
             .then_some(QUANT_BITS),
         levels,
         reconstruction_max_error: rec,
-        forward_ms: run.forward_ms,
-        inverse_ms: run.inverse_ms,
+        plan_ms: run.timing.plan_ms,
+        runs,
+        forward_ms: run.timing.forward_ms,
+        inverse_ms: run.timing.inverse_ms,
+        forward_min_ms: run.timing.forward_min_ms,
+        inverse_min_ms: run.timing.inverse_min_ms,
+        forward_mvert_per_s: mvert_per_s(mesh.num_vertices(), run.timing.forward_ms),
+        inverse_mvert_per_s: mvert_per_s(mesh.num_vertices(), run.timing.inverse_ms),
     })
 }
 
-fn run_triangle(h: &Hierarchy, kind: WaveletKind, frame: DetailFrame) -> Result<Run> {
+fn mvert_per_s(n: usize, ms: f64) -> f64 {
+    if ms > 0.0 {
+        n as f64 / ms * 1e-3
+    } else {
+        0.0
+    }
+}
+
+fn run_triangle(h: &Hierarchy, kind: WaveletKind, frame: DetailFrame, runs: usize) -> Result<Run> {
     let opts = SubdivideOptions::default();
+    let t = Instant::now();
     let w = match kind {
         WaveletKind::Midpoint => TriangleWavelet::midpoint(h, false)?,
         WaveletKind::MidpointLifted => TriangleWavelet::midpoint(h, true)?,
-        WaveletKind::Butterfly | WaveletKind::ButterflyLifted => TriangleWavelet::from_scheme(
-            h,
-            &SubdivideOptions {
-                scheme: Scheme::Butterfly,
-                ..opts
-            },
-            kind == WaveletKind::ButterflyLifted,
-        )?,
+        // `from_scheme` with `Scheme::Butterfly`, bit for bit, with the tables built from the
+        // level topologies when the hierarchy is untagged (the codec's path).
+        WaveletKind::Butterfly | WaveletKind::ButterflyLifted => {
+            TriangleWavelet::butterfly(h, kind == WaveletKind::ButterflyLifted)?
+        }
         _ => TriangleWavelet::loop_pgc(h, &opts)?,
     }
     .with_frame(frame);
+    let plan_ms = ms(t);
     let l = h.levels();
-    let t = Instant::now();
     let mut lowpass = vec![Vec::new(); l + 1];
     let mut details = vec![Vec::new(); l];
     lowpass[l] = h.positions.clone();
@@ -376,13 +489,17 @@ fn run_triangle(h: &Hierarchy, kind: WaveletKind, frame: DetailFrame) -> Result<
         lowpass[j] = c;
         details[j] = d;
     }
-    let forward_ms = ms(t);
-    let t = Instant::now();
     let mut signal = lowpass[0].clone();
     for (j, d) in details.iter().enumerate() {
         signal = w.synthesize_level(j, &signal, d)?;
     }
-    let inverse_ms = ms(t);
+    let timing = time_in_place(
+        &h.positions,
+        runs,
+        plan_ms,
+        |d| w.decompose_in_place(d),
+        |d| w.reconstruct_in_place(d),
+    )?;
     let mut approximations = Vec::with_capacity(l + 1);
     for (j, low) in lowpass.iter().enumerate() {
         let mut s = low.clone();
@@ -400,24 +517,21 @@ fn run_triangle(h: &Hierarchy, kind: WaveletKind, frame: DetailFrame) -> Result<
             .collect(),
         reconstructed: signal,
         reference: h.positions.clone(),
-        forward_ms,
-        inverse_ms,
+        timing,
     })
 }
 
-fn run_bspline(h: &Hierarchy, degree: Degree) -> Result<Run> {
+fn run_bspline(h: &Hierarchy, degree: Degree, runs: usize) -> Result<Run> {
     let w = BSplineWavelet::new(degree);
     let l = h.levels();
-    let topo = &h.topologies;
+    let topo = &h.topologies[..l];
     let sizes: Vec<usize> = (0..=l).map(|j| h.num_vertices(j)).collect();
-    let t = Instant::now();
     let mut data = h.positions.clone();
     let mut lowpass = vec![Vec::new(); l + 1];
     for j in (0..l).rev() {
         w.analyze_level(&topo[j], &mut data[..sizes[j + 1]])?;
         lowpass[j] = data[..sizes[j]].to_vec();
     }
-    let forward_ms = ms(t);
     lowpass[l] = h.positions.clone();
     let detail_norms = (0..l)
         .map(|j| {
@@ -427,11 +541,16 @@ fn run_bspline(h: &Hierarchy, degree: Degree) -> Result<Run> {
                 .collect()
         })
         .collect();
-    let t = Instant::now();
     for j in 0..l {
         w.synthesize_level(&topo[j], &mut data[..sizes[j + 1]])?;
     }
-    let inverse_ms = ms(t);
+    let timing = time_in_place(
+        &h.positions,
+        runs,
+        0.0,
+        |d| w.analyze(topo, d),
+        |d| w.synthesize(topo, d),
+    )?;
     let mut approximations = Vec::with_capacity(l + 1);
     for (j, low) in lowpass.iter().enumerate() {
         let mut s = low.clone();
@@ -446,22 +565,23 @@ fn run_bspline(h: &Hierarchy, degree: Degree) -> Result<Run> {
         detail_norms,
         reconstructed: data,
         reference: h.positions.clone(),
-        forward_ms,
-        inverse_ms,
+        timing,
     })
 }
 
-fn run_bspline_int(h: &Hierarchy, degree: Degree) -> Result<Run> {
+fn run_bspline_int(h: &Hierarchy, degree: Degree, runs: usize) -> Result<Run> {
     let w = BSplineWavelet::new(degree);
     let topo = &h.topologies;
     run_int(
         h,
+        runs,
+        0.0,
         |j, d| w.analyze_level_int(&topo[j], d),
         |j, d| w.synthesize_level_int(&topo[j], d),
     )
 }
 
-fn run_triangle_int(h: &Hierarchy, kind: WaveletKind) -> Result<Run> {
+fn run_triangle_int(h: &Hierarchy, kind: WaveletKind, runs: usize) -> Result<Run> {
     let scheme = if kind == WaveletKind::ButterflyInt {
         Scheme::Butterfly
     } else {
@@ -471,9 +591,13 @@ fn run_triangle_int(h: &Hierarchy, kind: WaveletKind) -> Result<Run> {
         scheme,
         ..Default::default()
     };
+    let t = Instant::now();
     let w = IntTriangleWavelet::from_scheme(h, &opts, true)?;
+    let plan_ms = ms(t);
     run_int(
         h,
+        runs,
+        plan_ms,
         |j, d| {
             w.forward_level(j, d);
             Ok(())
@@ -489,6 +613,8 @@ fn run_triangle_int(h: &Hierarchy, kind: WaveletKind) -> Result<Run> {
 /// `[0, 2^QUANT_BITS)`.
 fn run_int(
     h: &Hierarchy,
+    runs: usize,
+    plan_ms: f64,
     analyze: impl Fn(usize, &mut [[i64; 3]]) -> Result<()>,
     synthesize: impl Fn(usize, &mut [[i64; 3]]) -> Result<()>,
 ) -> Result<Run> {
@@ -515,14 +641,12 @@ fn run_int(
         })
         .collect();
     let to_f = |q: &[i64; 3]| DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64) / s;
-    let t = Instant::now();
     let mut data = quant.clone();
     let mut lowpass = vec![Vec::new(); l + 1];
     for j in (0..l).rev() {
         analyze(j, &mut data[..sizes[j + 1]])?;
         lowpass[j] = data[..sizes[j]].to_vec();
     }
-    let forward_ms = ms(t);
     lowpass[l] = quant.clone();
     let detail_norms = (0..l)
         .map(|j| {
@@ -532,11 +656,20 @@ fn run_int(
                 .collect()
         })
         .collect();
-    let t = Instant::now();
     for j in 0..l {
         synthesize(j, &mut data[..sizes[j + 1]])?;
     }
-    let inverse_ms = ms(t);
+    let timing = time_in_place(
+        &quant,
+        runs,
+        plan_ms,
+        |d| {
+            (0..l)
+                .rev()
+                .try_for_each(|j| analyze(j, &mut d[..sizes[j + 1]]))
+        },
+        |d| (0..l).try_for_each(|j| synthesize(j, &mut d[..sizes[j + 1]])),
+    )?;
     let mut approximations = Vec::with_capacity(l + 1);
     for (j, low) in lowpass.iter().enumerate() {
         let mut a = low.clone();
@@ -551,8 +684,7 @@ fn run_int(
         detail_norms,
         reconstructed: data.iter().map(to_f).collect(),
         reference: quant.iter().map(to_f).collect(),
-        forward_ms,
-        inverse_ms,
+        timing,
     })
 }
 

@@ -132,6 +132,8 @@ pub struct Decomposition {
 pub struct TriangleWavelet<'h> {
     h: &'h Hierarchy,
     tables: Vec<StencilTable>,
+    /// The update step's plan (lifted wavelets; empty otherwise).
+    update_plan: UpdatePlan,
     kind: Kind,
     frame: DetailFrame,
     solver: SolverOptions,
@@ -238,6 +240,11 @@ impl<'h> TriangleWavelet<'h> {
         Ok(TriangleWavelet {
             h,
             tables,
+            update_plan: if lifted {
+                UpdatePlan::new(h)
+            } else {
+                UpdatePlan::default()
+            },
             kind: Kind::Interpolating { lifted },
             frame: DetailFrame::Global,
             solver: SolverOptions::default(),
@@ -309,6 +316,7 @@ impl<'h> TriangleWavelet<'h> {
         Ok(TriangleWavelet {
             h,
             tables: r.stencils,
+            update_plan: UpdatePlan::default(),
             kind: Kind::Loop,
             frame: DetailFrame::Global,
             solver: SolverOptions::default(),
@@ -340,6 +348,11 @@ impl<'h> TriangleWavelet<'h> {
     /// The prediction tables (`tables[j]`: level `j` → `j + 1`).
     pub fn tables(&self) -> &[StencilTable] {
         &self.tables
+    }
+
+    /// The prediction tables, by value.
+    pub(crate) fn into_tables(self) -> Vec<StencilTable> {
+        self.tables
     }
 
     fn check_level(&self, level: usize) -> Result<()> {
@@ -394,21 +407,13 @@ impl<'h> TriangleWavelet<'h> {
     /// `c += ±U d` (the update step), in place.
     fn update(&self, level: usize, coarse: &mut [DVec3], details: &[DVec3], sign: f64) {
         let t = self.h.topology(level);
-        coarse
-            .par_iter_mut()
-            .with_min_len(4096)
-            .enumerate()
-            .for_each(|(v, c)| {
-                let f = t.vertex_faces(v).len();
-                if f == 0 {
-                    return;
-                }
+        self.update_plan
+            .for_each(t, level, coarse, |x, f, edges, phi| {
                 let mut acc = DVec3::ZERO;
-                for &e in t.vertex_edges(v) {
-                    let phi = t.edge_faces(e as usize).len() as f64;
-                    acc += phi * details[e as usize];
+                for (k, &e) in edges.iter().enumerate() {
+                    acc += edge_face_count(t, phi, k, e) as f64 * details[e as usize];
                 }
-                *c += sign * 3.0 / (8.0 * f as f64) * acc;
+                *x += sign * 3.0 / (8.0 * f as f64) * acc;
             });
     }
 
@@ -833,6 +838,82 @@ fn sub(a: &[DVec3], b: &[DVec3]) -> Vec<DVec3> {
 
 /// Odd vertices per parallel work item of the in-place prediction.
 const ODD_CHUNK: usize = 8192;
+
+/// Coarse vertices per parallel work item of the update step.
+const UPDATE_CHUNK: usize = 4096;
+
+/// The plan of the update step of the lifted triangle wavelets (built once per hierarchy):
+/// per level, the face count `φ_e` of the edge of each (vertex, edge) incidence, aligned with
+/// [`Topology::vertex_edges`], so the update reads it sequentially instead of looking up two
+/// edge-face offsets per edge. A level whose array is missing (an edge with more than 255
+/// faces, or no plan built) falls back to those lookups; the result is the same.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct UpdatePlan {
+    phi: Vec<Vec<u8>>,
+}
+
+impl UpdatePlan {
+    /// The plan of every level of `h`.
+    pub(crate) fn new(h: &Hierarchy) -> Self {
+        let phi = (0..h.levels())
+            .map(|j| {
+                let t = h.topology(j);
+                if (0..t.num_edges()).any(|e| t.edge_faces(e).len() > u8::MAX as usize) {
+                    return Vec::new();
+                }
+                t.vertex_edges
+                    .par_iter()
+                    .with_min_len(UPDATE_CHUNK)
+                    .map(|&e| t.edge_faces(e as usize).len() as u8)
+                    .collect()
+            })
+            .collect();
+        UpdatePlan { phi }
+    }
+
+    /// Runs `f(x, f_v, edges, phi)` in parallel for each coarse vertex `v` of level `level`
+    /// (topology `t`) that has faces: `x` its value in `coarse`, `f_v` its face count,
+    /// `edges` its [`Topology::vertex_edges`] and `phi` their face counts if the level has a
+    /// plan ([`edge_face_count`] reads them either way).
+    #[inline]
+    pub(crate) fn for_each<T: Send>(
+        &self,
+        t: &Topology,
+        level: usize,
+        coarse: &mut [T],
+        f: impl Fn(&mut T, usize, &[u32], Option<&[u8]>) + Sync,
+    ) {
+        let phi = self
+            .phi
+            .get(level)
+            .filter(|p| p.len() == t.vertex_edges.len());
+        coarse
+            .par_chunks_mut(UPDATE_CHUNK)
+            .enumerate()
+            .for_each(|(c, out)| {
+                let v0 = c * UPDATE_CHUNK;
+                let fo = &t.vertex_face_offsets[v0..=v0 + out.len()];
+                let eo = &t.vertex_edge_offsets[v0..=v0 + out.len()];
+                for (i, x) in out.iter_mut().enumerate() {
+                    let nf = (fo[i + 1] - fo[i]) as usize;
+                    if nf == 0 {
+                        continue;
+                    }
+                    let (a, b) = (eo[i] as usize, eo[i + 1] as usize);
+                    f(x, nf, &t.vertex_edges[a..b], phi.map(|p| &p[a..b]))
+                }
+            });
+    }
+}
+
+/// `φ_e` of the `k`-th edge `e` of a vertex in [`UpdatePlan::for_each`].
+#[inline(always)]
+pub(crate) fn edge_face_count(t: &Topology, phi: Option<&[u8]>, k: usize, e: u32) -> u32 {
+    match phi {
+        Some(p) => p[k] as u32,
+        None => t.edge_faces(e as usize).len() as u32,
+    }
+}
 
 /// Rows per parallel work item of the solver.
 const ROWS: usize = 4096;

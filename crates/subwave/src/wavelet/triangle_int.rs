@@ -27,6 +27,7 @@
 
 use rayon::prelude::*;
 
+use super::triangle::{edge_face_count, TriangleWavelet, UpdatePlan};
 use crate::hierarchy::Hierarchy;
 use crate::subdivision::refine::Split;
 use crate::subdivision::stencil::StencilTable;
@@ -46,6 +47,7 @@ const CHUNK: usize = 8192;
 pub struct IntTriangleWavelet<'h> {
     h: &'h Hierarchy,
     tables: Vec<StencilTable>,
+    update_plan: UpdatePlan,
     lifted: bool,
 }
 
@@ -81,8 +83,28 @@ impl<'h> IntTriangleWavelet<'h> {
             levels: h.levels() as u32,
             ..*opts
         };
-        let r = Refinement::build(&h.base, &o, true)?;
-        for (j, t) in r.stencils.iter().enumerate() {
+        // Midpoint and butterfly with the default options on an untagged hierarchy: the same
+        // tables, bit for bit, built from the hierarchy's level topologies (no refinement of
+        // the base mesh; [`TriangleWavelet::butterfly`]).
+        let d = SubdivideOptions::default();
+        let untagged = h.topologies.iter().all(|t| {
+            t.edge_sharpness.iter().all(|&s| s == 0.0)
+                && t.vertex_sharpness.iter().all(|&s| s == 0.0)
+        });
+        let defaults = opts.boundary == d.boundary
+            && opts.creasing == d.creasing
+            && opts.loop_weights == d.loop_weights
+            && opts.sharp_angle.is_none();
+        let stencils = match opts.scheme {
+            Scheme::Midpoint if defaults && untagged && h.levels() > 0 => {
+                TriangleWavelet::midpoint(h, false)?.into_tables()
+            }
+            Scheme::Butterfly if defaults && untagged && h.levels() > 0 => {
+                TriangleWavelet::butterfly(h, false)?.into_tables()
+            }
+            _ => Refinement::build(&h.base, &o, true)?.stencils,
+        };
+        for (j, t) in stencils.iter().enumerate() {
             if t.num_sources as usize != h.num_vertices(j) || t.len() != h.num_vertices(j + 1) {
                 return Err(Error::InvalidArgument(format!(
                     "level {j}: the scheme's table does not match the hierarchy"
@@ -100,7 +122,12 @@ impl<'h> IntTriangleWavelet<'h> {
         }
         Ok(IntTriangleWavelet {
             h,
-            tables: r.stencils,
+            tables: stencils,
+            update_plan: if lifted {
+                UpdatePlan::new(h)
+            } else {
+                UpdatePlan::default()
+            },
             lifted,
         })
     }
@@ -221,16 +248,12 @@ impl<'h> IntTriangleWavelet<'h> {
     /// `even[v] += sign · ⌊3 Σ φ_e d_e / (8 f_v) + ½⌋`, exactly.
     fn update(&self, level: usize, even: &mut [[i64; 3]], odd: &[[i64; 3]], sign: i64) {
         let t = self.h.topology(level);
-        even.par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
-            for (i, x) in out.iter_mut().enumerate() {
-                let v = c * CHUNK + i;
-                let f = t.vertex_faces(v).len() as i64;
-                if f == 0 {
-                    continue;
-                }
+        self.update_plan
+            .for_each(t, level, even, |x, nf, edges, phi| {
+                let f = nf as i64;
                 let mut s = [0i64; 3];
-                for &e in t.vertex_edges(v) {
-                    let phi = t.edge_faces(e as usize).len() as i64;
+                for (k, &e) in edges.iter().enumerate() {
+                    let phi = edge_face_count(t, phi, k, e) as i64;
                     let d = odd[e as usize];
                     for q in 0..3 {
                         s[q] += phi * d[q];
@@ -246,8 +269,7 @@ impl<'h> IntTriangleWavelet<'h> {
                 for q in 0..3 {
                     x[q] += sign * r(6 * s[q]);
                 }
-            }
-        });
+            });
     }
 }
 
@@ -332,6 +354,42 @@ mod tests {
                 IntTriangleWavelet::from_scheme(h, &bf, true).unwrap(),
             ),
         ]
+    }
+
+    /// The tables built from the level topologies (default options, untagged hierarchy) give
+    /// the transform of the tables of a refinement of the base mesh, bit for bit.
+    #[test]
+    fn topology_tables_match_the_refinement() {
+        for (h, q) in [
+            quantized(&generate::icosahedron(), 3, 16),
+            quantized(&generate::grid(3, 2, true), 3, 20),
+        ] {
+            for (name, w) in schemes(&h) {
+                let scheme = if name.starts_with("midpoint") {
+                    Scheme::Midpoint
+                } else {
+                    Scheme::Butterfly
+                };
+                let o = SubdivideOptions {
+                    scheme,
+                    levels: h.levels() as u32,
+                    ..Default::default()
+                };
+                let r = IntTriangleWavelet {
+                    h: &h,
+                    tables: Refinement::build(&h.base, &o, true).unwrap().stencils,
+                    update_plan: UpdatePlan::default(),
+                    lifted: w.lifted,
+                };
+                let (mut a, mut b) = (q.clone(), q.clone());
+                w.forward(&mut a).unwrap();
+                r.forward(&mut b).unwrap();
+                assert_eq!(a, b, "{name}");
+                if scheme == Scheme::Butterfly {
+                    assert_eq!(w.tables, r.tables, "{name}");
+                }
+            }
+        }
     }
 
     #[test]

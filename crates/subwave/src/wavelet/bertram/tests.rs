@@ -259,6 +259,68 @@ fn integer_transform_tracks_rescaled_float_transform() {
     }
 }
 
+/// The `i64` fast path of the integer lifts gives the `i128` results bit for bit, including
+/// coordinates large enough that some updates overflow `i64` and take the `i128` path.
+#[test]
+fn integer_fast_path_matches_i128() {
+    let mut rng = Rng(11);
+    for _ in 0..20_000 {
+        let n = rng.int(1 << 40) as i128 * rng.int(1 << 20) as i128;
+        let d = 1 + rng.int(1 << 12).unsigned_abs() as i128;
+        assert_eq!(
+            round_div64(n as i64, d as i64).map(i128::from),
+            Some(round_div(n, d)),
+            "{n}/{d}"
+        );
+    }
+    let mut meshes = test_meshes();
+    meshes.push(("grid", generate::grid(4, 3, false)));
+    for (name, mesh) in meshes {
+        let r = hierarchy(&mesh, 3);
+        let sizes = level_sizes(&r.topologies).unwrap();
+        for scale in [1e6, 1e17] {
+            let fine: Vec<[i64; 3]> = to_int(&r.positions, scale)
+                .into_iter()
+                .map(|p| p.map(|c| c + rng.int(1000)))
+                .collect();
+            for degree in Degree::ALL {
+                for boundary in BOUNDARIES {
+                    let run = |int64: bool, inverse: bool, data: &mut [[i64; 3]]| {
+                        let order: Vec<usize> = if inverse {
+                            (0..r.topologies.len()).collect()
+                        } else {
+                            (0..r.topologies.len()).rev().collect()
+                        };
+                        for j in order {
+                            let mut ctx = Ctx::new(&r.topologies[j], boundary);
+                            ctx.int64 = int64;
+                            let d = &mut data[..sizes[j + 1]];
+                            let lifts = degree.integer_lifts();
+                            if inverse {
+                                for l in lifts.iter().rev() {
+                                    ctx.int_lift(*l, d, true).unwrap();
+                                }
+                            } else {
+                                for l in lifts {
+                                    ctx.int_lift(*l, d, false).unwrap();
+                                }
+                            }
+                        }
+                    };
+                    let (mut fast, mut slow) = (fine.clone(), fine.clone());
+                    run(true, false, &mut fast);
+                    run(false, false, &mut slow);
+                    assert_eq!(fast, slow, "{name} {degree:?} {boundary:?} {scale} forward");
+                    run(true, true, &mut fast);
+                    run(false, true, &mut slow);
+                    assert_eq!(fast, slow, "{name} {degree:?} {boundary:?} {scale} inverse");
+                    assert_eq!(fast, fine);
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn integer_overflow_is_an_error() {
     let r = hierarchy(&generate::cube(), 1);
