@@ -15,6 +15,9 @@
 //!    the parameterization (MAPS §4), then a tangential relaxation with guarded re-projection
 //!    for well-shaped triangles; boundary and feature base edges keep their vertices on the
 //!    input's boundary curves and creases;
+//!    then [`fold_repair`] moves the vertices of faces still flipped against the input or
+//!    degenerate into the kernels of their stars (re-embedding small discs where single moves
+//!    do not suffice), positions only;
 //! 5. [`shrinkwrap`]: the fallback (Kobbelt et al. 1999, as Bertram §5.3) for genus-0
 //!    inputs when the parameterization fails;
 //! 6. [`quality`]: angles, flipped and degenerate faces.
@@ -24,6 +27,7 @@
 //! Maret eq. 5.7), so [`crate::hierarchy::Hierarchy::detect`] accepts it and the wavelet
 //! transforms take it directly; [`Remeshed::hierarchy`] is that hierarchy.
 
+pub mod fold_repair;
 pub mod normal;
 pub mod param;
 pub mod quality;
@@ -455,7 +459,12 @@ pub fn remesh_with_progress(
         resample::relax(&mut fine, &mut hints, topo, &pinned, &proj, 1, 0.0);
         let (left, opposed) =
             resample::untangle_counts(&mut fine, &mut hints, topo, &pinned, &proj, 12);
-        flipped_after = Some(opposed);
+        // Last, the faces still flipped or degenerate: vertices into their stars' kernels,
+        // discs re-embedded.
+        let fr = fold_repair::repair_folds(&mut fine, &mut hints, topo, &pinned, &proj, 12);
+        tracing::debug!(left, opposed, ?fr, "fold repair");
+        let left = fr.flipped_after;
+        flipped_after = Some(fr.flipped_after);
         tracing::debug!(
             relaxed_ms,
             untangled_ms,
@@ -486,7 +495,9 @@ pub fn remesh_with_progress(
             tracing::debug!(left, at_base, at_fixed, at_miss, "flipped faces");
         }
         if left > 0 {
-            warnings.push(format!("{left} face(s) still flipped after untangling"));
+            warnings.push(format!(
+                "{left} face(s) still flipped after untangling and repair"
+            ));
         }
         progress("relax", 1.0);
     }

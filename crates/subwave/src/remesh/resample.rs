@@ -134,6 +134,33 @@ impl Projector {
         None
     }
 
+    /// The input's normal around triangle `t`: the area-weighted mean of the normals of the
+    /// input triangles sharing a vertex with it (unit; zero if they cancel or `t` is not an
+    /// input triangle).
+    pub fn smooth_normal(&self, t: u32) -> DVec3 {
+        let Some(tv) = self.tris.get(t as usize) else {
+            return DVec3::ZERO;
+        };
+        let mut n = DVec3::ZERO;
+        let mut seen: [u32; 64] = [u32::MAX; 64];
+        let mut count = 0;
+        for &v in tv {
+            let v = v as usize;
+            for &u in &self.fan[self.fan_start[v] as usize..self.fan_start[v + 1] as usize] {
+                if seen[..count].contains(&u) {
+                    continue;
+                }
+                if count < seen.len() {
+                    seen[count] = u;
+                    count += 1;
+                }
+                let [a, b, c] = self.tris[u as usize].map(|i| self.pos[i as usize]);
+                n += (b - a).cross(c - a);
+            }
+        }
+        n.normalize_or_zero()
+    }
+
     /// The closest point of input triangle `t` to `p` and its squared distance (`None` if
     /// `t` is not an input triangle).
     fn on_triangle(&self, p: DVec3, t: u32) -> Option<(DVec3, f64)> {
@@ -427,7 +454,7 @@ pub fn face_normal(fv: &[u32], pos: &[DVec3]) -> DVec3 {
 
 /// Input triangles near the vertices of a face (the hints of its vertices, for
 /// [`Projector::closest_near`]).
-fn face_hints(fv: &[u32], hints: &[u32]) -> [u32; 4] {
+pub(super) fn face_hints(fv: &[u32], hints: &[u32]) -> [u32; 4] {
     let mut h = [u32::MAX; 4];
     for (i, &v) in fv.iter().take(4).enumerate() {
         h[i] = hints.get(v as usize).copied().unwrap_or(u32::MAX);
@@ -539,8 +566,9 @@ pub fn flipped_faces(topo: &Topology, pos: &[DVec3], hints: &[u32], proj: &Proje
 }
 
 /// Number of faces around `v` that are flipped against the input when `v` is at `p` (near
-/// input triangle `hint`), and the smallest angle of those faces (degrees).
-fn flips_around(
+/// input triangle `hint`), the smallest angle of those faces (degrees), and the largest
+/// distance of their centroids to the input.
+pub(super) fn flips_around(
     v: usize,
     p: DVec3,
     hint: u32,
@@ -548,9 +576,10 @@ fn flips_around(
     pos: &[DVec3],
     hints: &[u32],
     proj: &Projector,
-) -> (usize, f64) {
+) -> (usize, f64, f64) {
     let mut count = 0;
     let mut min_angle = 180.0f64;
+    let mut dev = 0.0f64;
     for &f in topo.vertex_faces(v) {
         let fv = topo.face_vertices(f as usize);
         let m = fv.len();
@@ -573,7 +602,9 @@ fn flips_around(
         if let Some(k) = fv.iter().take(4).position(|&w| w as usize == v) {
             fh[k] = hint;
         }
-        let (_, tri) = proj.closest_near(c / m as f64, &fh);
+        let c = c / m as f64;
+        let (cq, tri) = proj.closest_near(c, &fh);
+        dev = dev.max(cq.distance(c));
         if n.dot(proj.normals[tri as usize]) <= 0.0 {
             count += 1;
         }
@@ -598,7 +629,7 @@ fn flips_around(
         };
         min_angle = min_angle.min(ang);
     }
-    (count, min_angle)
+    (count, min_angle, dev)
 }
 
 /// Whether a face is flipped against the input or has an angle below `min_degrees`.

@@ -1,0 +1,528 @@
+//! Final repair of flipped and degenerate faces of a remesh, in 3D on the finest level.
+//!
+//! After the resampling through the MAPS parameterization (Lee et al. 1998, §4) and the
+//! relaxation and untangling of [`super::resample`], a few faces can still be turned over
+//! against the input (where the parameterization folds or misses, next to boundary and
+//! feature chains whose vertices are pinned) or be slivers. Lee et al. §4 smooth such
+//! regions in the parameter domain; here the repair works on the surface, as the untangling
+//! of Kobbelt et al. 1999 ("shrink-wrapping", §4 relaxation restricted to the tangent plane):
+//! every free vertex of a bad face is moved into the *kernel* of its star — the region of the
+//! input's tangent plane from which every face around it turns counterclockwise around the
+//! input normal — at the kernel's Chebyshev centre (the point farthest from the lines of the
+//! opposite edges, a tiny linear program), then projected onto the input. A move is kept only
+//! if it lowers the number of flipped faces around the vertex (or keeps it and raises their
+//! smallest angle), does not pull the faces off the input, stays on the sheet (short
+//! projection) and stays within one ring of where the repair found the vertex, so the
+//! sampling (and the distortion) changes only locally. Only positions change: the
+//! subdivision connectivity is untouched; pinned vertices (on boundary and feature chains)
+//! stay on their curves.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::quality::{min_angle, DEGENERATE_DEGREES};
+use super::resample::{face_hints, face_normal, flips_around, Projector};
+use crate::topology::Topology;
+
+/// Faces with a smaller angle than this (degrees) are repaired (above
+/// [`DEGENERATE_DEGREES`], so that repaired faces clear the degenerate threshold).
+const BAD_ANGLE: f64 = 2.0;
+
+/// What [`repair_folds`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FoldRepair {
+    /// Flipped faces (normal opposing the input's) before the repair.
+    pub flipped_before: usize,
+    /// Degenerate faces (as [`super::quality::Quality::degenerate`]) before the repair.
+    pub degenerate_before: usize,
+    /// Flipped faces after the repair.
+    pub flipped_after: usize,
+    /// Degenerate faces after the repair.
+    pub degenerate_after: usize,
+    /// Vertex moves made.
+    pub moves: usize,
+}
+
+/// Whether face `f` is bad: its normal makes a non-acute angle with the input normal at the
+/// closest input point of its centroid, or it has an angle below `min_degrees`.
+fn bad_face(fv: &[u32], pos: &[DVec3], hints: &[u32], proj: &Projector, min_degrees: f64) -> bool {
+    flip_sign(fv, pos, hints, proj) <= 0.0 || min_angle(fv, pos) < min_degrees
+}
+
+/// The dot product of face `fv`'s normal with the input normal at the closest input point
+/// of its centroid.
+fn flip_sign(fv: &[u32], pos: &[DVec3], hints: &[u32], proj: &Projector) -> f64 {
+    let n = face_normal(fv, pos);
+    let c = fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64;
+    let (_, tri) = proj.closest_near(c, &face_hints(fv, hints));
+    n.dot(proj.normals[tri as usize])
+}
+
+/// Counts of flipped (normal opposing the input's) and degenerate faces.
+fn counts(topo: &Topology, pos: &[DVec3], hints: &[u32], proj: &Projector) -> (usize, usize) {
+    (0..topo.num_faces())
+        .into_par_iter()
+        .map(|f| {
+            let fv = topo.face_vertices(f);
+            let degenerate = min_angle(fv, pos) < DEGENERATE_DEGREES
+                || face_normal(fv, pos).length_squared() == 0.0;
+            let flipped = flip_sign(fv, pos, hints, proj) < 0.0;
+            (usize::from(flipped), usize::from(degenerate))
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+}
+
+/// Repairs flipped and degenerate faces of a level (see the module documentation): at most
+/// `rounds` Gauss-Seidel rounds over the free vertices of the bad faces, the region growing
+/// by one ring per round (up to three). `hints[v]` is an input triangle near vertex `v`
+/// (updated as vertices move); `fixed` vertices do not move.
+///
+/// Preconditions: `pos`, `hints` and `fixed` have `topo.num_vertices` entries; the vertices
+/// lie on the input behind `proj`.
+pub fn repair_folds(
+    pos: &mut [DVec3],
+    hints: &mut [u32],
+    topo: &Topology,
+    fixed: &[bool],
+    proj: &Projector,
+    rounds: u32,
+) -> FoldRepair {
+    let (flipped_before, degenerate_before) = counts(topo, pos, hints, proj);
+    let mut out = FoldRepair {
+        flipped_before,
+        degenerate_before,
+        ..FoldRepair::default()
+    };
+    let all_bad = |pos: &[DVec3], hints: &[u32]| -> Vec<u32> {
+        (0..topo.num_faces() as u32)
+            .into_par_iter()
+            .filter(|&f| bad_face(topo.face_vertices(f as usize), pos, hints, proj, BAD_ANGLE))
+            .collect()
+    };
+    let mut origin: Vec<Option<(DVec3, f64)>> = vec![None; pos.len()];
+    let bad = all_bad(pos, hints);
+    let bad = vertex_rounds(
+        pos,
+        hints,
+        topo,
+        fixed,
+        proj,
+        rounds,
+        bad,
+        &mut origin,
+        &mut out.moves,
+    );
+    // Folds no single vertex can open: re-embed a growing disc around each connected group
+    // of bad faces, then polish the discs' new faces vertex by vertex.
+    // Repeated while it helps (at most three times).
+    let mut bad = bad;
+    for _ in 0..3 {
+        if bad.is_empty() {
+            break;
+        }
+        let moved = reembed(pos, hints, topo, fixed, proj, &bad);
+        if moved == 0 {
+            break;
+        }
+        out.moves += moved;
+        let again = all_bad(pos, hints);
+        let again = vertex_rounds(
+            pos,
+            hints,
+            topo,
+            fixed,
+            proj,
+            rounds,
+            again,
+            &mut origin,
+            &mut out.moves,
+        );
+        let progress = again.len() < bad.len();
+        bad = again;
+        if !progress {
+            break;
+        }
+    }
+    let (flipped_after, degenerate_after) = counts(topo, pos, hints, proj);
+    out.flipped_after = flipped_after;
+    out.degenerate_after = degenerate_after;
+    out
+}
+
+/// Gauss-Seidel rounds of single-vertex moves into the kernel of their stars over the free
+/// vertices of the `bad` faces (the region growing by one ring per round, up to three; at
+/// most `rounds` rounds, fewer once a round at full radius moves nothing). `origin[v]` is
+/// where vertex `v` was, and its ring's mean edge length, when the repair first met it.
+/// Returns the bad faces left.
+#[allow(clippy::too_many_arguments)]
+fn vertex_rounds(
+    pos: &mut [DVec3],
+    hints: &mut [u32],
+    topo: &Topology,
+    fixed: &[bool],
+    proj: &Projector,
+    rounds: u32,
+    mut bad: Vec<u32>,
+    origin: &mut [Option<(DVec3, f64)>],
+    moves: &mut usize,
+) -> Vec<u32> {
+    // Where each vertex was, and its ring's mean edge length, when the repair first met it.
+    let mean_edge = |v: usize, pos: &[DVec3]| {
+        let edges = topo.vertex_edges(v);
+        edges
+            .iter()
+            .map(|&e| pos[topo.other_vertex(e as usize, v as u32) as usize].distance(pos[v]))
+            .sum::<f64>()
+            / edges.len().max(1) as f64
+    };
+    for round in 0..rounds {
+        if bad.is_empty() {
+            break;
+        }
+        let mut region = vec![false; pos.len()];
+        for &f in &bad {
+            for &v in topo.face_vertices(f as usize) {
+                region[v as usize] = true;
+            }
+        }
+        for _ in 0..round.min(3) {
+            let grown = region.clone();
+            for (v, &r) in grown.iter().enumerate() {
+                if r {
+                    for &e in topo.vertex_edges(v) {
+                        region[topo.other_vertex(e as usize, v as u32) as usize] = true;
+                    }
+                }
+            }
+        }
+        let mut round_moves = 0;
+        let verts: Vec<usize> = (0..pos.len())
+            .filter(|&v| region[v] && !fixed[v] && !topo.vertex_edges(v).is_empty())
+            .collect();
+        for &v in &verts {
+            let now = flips_around(v, pos[v], hints[v], topo, pos, hints, proj);
+            if now.0 == 0 && now.1 >= BAD_ANGLE {
+                continue;
+            }
+            let p0 = pos[v];
+            let (o, reach0) = *origin[v].get_or_insert_with(|| (p0, mean_edge(v, pos)));
+            let reach = mean_edge(v, pos);
+            let n = proj.smooth_normal(hints[v]);
+            let Some((k, _, _)) = kernel_centre(v, p0, n, topo, pos).filter(|k| k.1 > 0.0) else {
+                continue;
+            };
+            let mut best: Option<(DVec3, u32, (usize, f64, f64))> = None;
+            for t in [1.0, 0.5, 0.25] {
+                let target = p0.lerp(k, t);
+                let (q, tri) = proj.closest_near(target, &[hints[v]]);
+                if q.distance(target) > 0.25 * reach || q.distance(o) > reach0 {
+                    continue;
+                }
+                let new = flips_around(v, q, tri, topo, pos, hints, proj);
+                if new.2 > now.2.max(0.05 * reach) {
+                    continue;
+                }
+                let cur = best.map_or(now, |b| b.2);
+                if new.0 < cur.0 || (new.0 == cur.0 && new.1 > cur.1) {
+                    best = Some((q, tri, new));
+                }
+            }
+            if let Some((q, tri, _)) = best {
+                pos[v] = q;
+                hints[v] = tri;
+                *moves += 1;
+                round_moves += 1;
+            }
+        }
+        let mut faces: Vec<u32> = verts
+            .iter()
+            .flat_map(|&v| topo.vertex_faces(v).iter().copied())
+            .collect();
+        faces.extend_from_slice(&bad);
+        faces.sort_unstable();
+        faces.dedup();
+        let cur: &[DVec3] = pos;
+        let hint: &[u32] = hints;
+        bad = faces
+            .into_par_iter()
+            .filter(|&f| bad_face(topo.face_vertices(f as usize), cur, hint, proj, BAD_ANGLE))
+            .collect();
+        tracing::debug!(round, bad = bad.len(), region = verts.len(), "fold repair");
+        if round_moves == 0 && round >= 3 {
+            break;
+        }
+    }
+    bad
+}
+
+/// Sweeps of the membrane solve in [`reembed`].
+const MEMBRANE_SWEEPS: usize = 60;
+
+/// The input point to which a repaired vertex goes: the local closest point (walking from
+/// its input triangle `hint`, so it stays on its sheet), else the closest one.
+fn project(proj: &Projector, p: DVec3, hint: u32) -> (DVec3, u32) {
+    proj.closest_local(p, hint)
+        .unwrap_or_else(|| proj.closest_near(p, &[hint]))
+}
+
+/// The input triangle vertex `v` of `free` had before the re-embedding.
+fn saved_hint(free: &[u32], saved: &[(DVec3, u32)], v: u32) -> u32 {
+    free.iter()
+        .position(|&w| w == v)
+        .map_or(u32::MAX, |i| saved[i].1)
+}
+
+/// Re-embeds the neighbourhood of each connected group of `bad` faces: the free vertices
+/// within `k` rings (`k = 1..=4`, until the group is repaired) take the membrane (uniform
+/// Laplacian, Gauss-Seidel) spanned by the ring around them, which projected onto the
+/// input's tangent plane is Tutte's barycentric embedding (fold-free for a convex ring,
+/// Floater 1997), and are projected onto the input. A re-embedding is kept only if it lowers
+/// the number of bad faces of the disc without pulling faces off the input. Returns the
+/// number of vertices moved.
+fn reembed(
+    pos: &mut [DVec3],
+    hints: &mut [u32],
+    topo: &Topology,
+    fixed: &[bool],
+    proj: &Projector,
+    bad: &[u32],
+) -> usize {
+    let nv = pos.len();
+    // Groups of bad faces sharing vertices (union-find over the faces' vertices).
+    let mut parent: Vec<u32> = (0..nv as u32).collect();
+    fn find(parent: &mut [u32], mut x: u32) -> u32 {
+        while parent[x as usize] != x {
+            parent[x as usize] = parent[parent[x as usize] as usize];
+            x = parent[x as usize];
+        }
+        x
+    }
+    for &f in bad {
+        let fv = topo.face_vertices(f as usize);
+        for w in fv.windows(2) {
+            let (a, b) = (find(&mut parent, w[0]), find(&mut parent, w[1]));
+            parent[a as usize] = b;
+        }
+    }
+    let mut groups: std::collections::BTreeMap<u32, Vec<u32>> = Default::default();
+    for &f in bad {
+        let r = find(&mut parent, topo.face_vertices(f as usize)[0]);
+        groups.entry(r).or_default().push(f);
+    }
+    let mut moved = 0;
+    let mut in_region = vec![false; nv];
+    for faces in groups.values() {
+        for k in 1..=4 {
+            // The disc: the group's vertices grown by k rings.
+            let mut verts: Vec<u32> = faces
+                .iter()
+                .flat_map(|&f| topo.face_vertices(f as usize).iter().copied())
+                .collect();
+            verts.sort_unstable();
+            verts.dedup();
+            for &v in &verts {
+                in_region[v as usize] = true;
+            }
+            for _ in 0..k {
+                let mut next = verts.clone();
+                for &v in &verts {
+                    for &e in topo.vertex_edges(v as usize) {
+                        let w = topo.other_vertex(e as usize, v);
+                        if !in_region[w as usize] {
+                            in_region[w as usize] = true;
+                            next.push(w);
+                        }
+                    }
+                }
+                verts = next;
+            }
+            let free: Vec<u32> = verts
+                .iter()
+                .copied()
+                .filter(|&v| !fixed[v as usize] && !topo.vertex_edges(v as usize).is_empty())
+                .collect();
+            for &v in &verts {
+                in_region[v as usize] = false;
+            }
+            if free.is_empty() {
+                continue;
+            }
+            let mut disc_faces: Vec<u32> = free
+                .iter()
+                .flat_map(|&v| topo.vertex_faces(v as usize).iter().copied())
+                .collect();
+            disc_faces.sort_unstable();
+            disc_faces.dedup();
+            let score = |pos: &[DVec3], hints: &[u32]| {
+                let mut nbad = 0;
+                let mut dev = 0.0f64;
+                let mut len = 0.0;
+                for &f in &disc_faces {
+                    let fv = topo.face_vertices(f as usize);
+                    if bad_face(fv, pos, hints, proj, BAD_ANGLE) {
+                        nbad += 1;
+                    }
+                    let c = fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64;
+                    let (q, _) = proj.closest_near(c, &face_hints(fv, hints));
+                    dev = dev.max(q.distance(c));
+                    len += pos[fv[0] as usize].distance(pos[fv[1] as usize]);
+                }
+                (nbad, dev, len / disc_faces.len().max(1) as f64)
+            };
+            let before = score(pos, hints);
+            let saved: Vec<(DVec3, u32)> = free
+                .iter()
+                .map(|&v| (pos[v as usize], hints[v as usize]))
+                .collect();
+            for _ in 0..MEMBRANE_SWEEPS {
+                for &v in &free {
+                    let edges = topo.vertex_edges(v as usize);
+                    let c = edges
+                        .iter()
+                        .map(|&e| pos[topo.other_vertex(e as usize, v) as usize])
+                        .sum::<DVec3>()
+                        / edges.len() as f64;
+                    pos[v as usize] = c;
+                }
+            }
+            // Lift along the disc's normal onto the input (the membrane is a height field over
+            // the tangent plane; a closest point would pull it onto creases).
+            let normal = free
+                .iter()
+                .map(|&v| proj.smooth_normal(saved_hint(&free, &saved, v)))
+                .sum::<DVec3>()
+                .normalize_or_zero();
+            let reach = 2.0 * before.2;
+            for &v in &free {
+                let p = pos[v as usize];
+                let up = proj.cast_ray(p, normal, reach);
+                let down = proj.cast_ray(p, -normal, reach);
+                let hit = match (up, down) {
+                    (Some(a), Some(b)) => Some(if a.0 <= b.0 {
+                        (p + normal * a.0, a.1)
+                    } else {
+                        (p - normal * b.0, b.1)
+                    }),
+                    (Some(a), None) => Some((p + normal * a.0, a.1)),
+                    (None, Some(b)) => Some((p - normal * b.0, b.1)),
+                    (None, None) => None,
+                };
+                let (q, t) = match hit {
+                    Some(h) if normal != DVec3::ZERO => h,
+                    _ => project(proj, p, hints[v as usize]),
+                };
+                pos[v as usize] = q;
+                hints[v as usize] = t;
+            }
+            let after = score(pos, hints);
+            if after.0 < before.0 && after.1 <= before.1.max(0.05 * before.2) {
+                moved += free.len();
+                break;
+            }
+            for (&v, &(p, t)) in free.iter().zip(&saved) {
+                pos[v as usize] = p;
+                hints[v as usize] = t;
+            }
+        }
+    }
+    moved
+}
+
+/// The centre of the kernel of vertex `v`'s star in the plane through `p` with unit normal
+/// `n`: the point maximizing the smallest signed distance `r` to the lines of the edges of the
+/// faces around `v` that are not incident to it (each face turns counterclockwise around `n`
+/// when `v` is on the positive side of them), found by enumerating the vertices of that
+/// linear program in `(x, y, r)` (a few edges; bounded by a box twice the ring's radius).
+/// Returns the point in 3D, `r` (negative: the kernel is empty and the point violates the
+/// constraints least) and the same margin for `p` itself; `None` for a zero normal or a vertex without faces.
+pub fn kernel_centre(
+    v: usize,
+    p: DVec3,
+    n: DVec3,
+    topo: &Topology,
+    pos: &[DVec3],
+) -> Option<(DVec3, f64, f64)> {
+    if n == DVec3::ZERO {
+        return None;
+    }
+    let (e1, e2) = n.any_orthonormal_pair();
+    let to2 = |q: DVec3| {
+        let d = q - p;
+        [d.dot(e1), d.dot(e2)]
+    };
+    // Constraints u·x − r ≥ c with unit u.
+    let mut cons: Vec<([f64; 2], f64)> = Vec::with_capacity(16);
+    let mut radius = 0.0f64;
+    let mut centre = [0.0; 2];
+    let mut nring = 0.0;
+    for &f in topo.vertex_faces(v) {
+        let fv = topo.face_vertices(f as usize);
+        let m = fv.len();
+        let Some(k) = fv.iter().position(|&w| w as usize == v) else {
+            continue;
+        };
+        for i in 1..m - 1 {
+            let a = to2(pos[fv[(k + i) % m] as usize]);
+            let b = to2(pos[fv[(k + i + 1) % m] as usize]);
+            let d = [b[0] - a[0], b[1] - a[1]];
+            let l = (d[0] * d[0] + d[1] * d[1]).sqrt();
+            if l <= 0.0 {
+                continue;
+            }
+            let u = [-d[1] / l, d[0] / l];
+            cons.push((u, u[0] * a[0] + u[1] * a[1]));
+        }
+        let a = to2(pos[fv[(k + 1) % m] as usize]);
+        radius = radius.max((a[0] * a[0] + a[1] * a[1]).sqrt());
+        centre[0] += a[0];
+        centre[1] += a[1];
+        nring += 1.0;
+    }
+    if cons.len() < 3 || radius <= 0.0 {
+        return None;
+    }
+    centre = [centre[0] / nring, centre[1] / nring];
+    // The margin of `p` itself (the origin of the plane).
+    let margin = cons.iter().map(|c| -c.1).fold(f64::INFINITY, f64::min);
+    let big = 2.0 * radius;
+    for u in [[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]] {
+        cons.push((u, u[0] * centre[0] + u[1] * centre[1] - big));
+    }
+    let mut best: Option<([f64; 2], f64)> = None;
+    let nc = cons.len();
+    for i in 0..nc {
+        for j in i + 1..nc {
+            for k in j + 1..nc {
+                // u·x − r = c for the three constraints (Cramer).
+                let rows = [cons[i], cons[j], cons[k]];
+                let det3 = |m: [[f64; 3]; 3]| {
+                    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+                        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+                        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+                };
+                let a = rows.map(|(u, _)| [u[0], u[1], -1.0]);
+                let det = det3(a);
+                if det.abs() < 1e-12 {
+                    continue;
+                }
+                let c = rows.map(|(_, c)| c);
+                let col = |j: usize| {
+                    let mut m = a;
+                    for r in 0..3 {
+                        m[r][j] = c[r];
+                    }
+                    det3(m) / det
+                };
+                let (x, y, r) = (col(0), col(1), col(2));
+                if best.is_some_and(|b| r <= b.1) {
+                    continue;
+                }
+                let tol = 1e-12 * radius;
+                if cons.iter().all(|(u, c)| u[0] * x + u[1] * y - r >= c - tol) {
+                    best = Some(([x, y], r));
+                }
+            }
+        }
+    }
+    best.map(|(x, r)| (p + e1 * x[0] + e2 * x[1], r, margin))
+}
