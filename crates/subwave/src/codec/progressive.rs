@@ -1125,6 +1125,22 @@ struct Setup {
 }
 
 fn setup(p: &Parsed, bytes: &[u8]) -> Result<Setup> {
+    let (hierarchy, base_q, base_positions) = setup_base(p, bytes)?;
+    let forest = setup_forest(p, &hierarchy)?;
+    Ok(Setup {
+        hierarchy,
+        forest,
+        base_q,
+        base_positions,
+    })
+}
+
+/// The base mesh and hierarchy of a stream (see [`Setup`]).
+type Base = (Hierarchy, Vec<[i64; 3]>, Vec<DVec3>);
+
+/// The hierarchy, integer base coefficients and base positions of a stream ([`Setup`]
+/// without the forest).
+fn setup_base(p: &Parsed, bytes: &[u8]) -> Result<Base> {
     let h = &p.c.header;
     let (data, complete) = p.c.chunk(bytes, 0)?;
     let off = p.c.chunks[0].offset as usize;
@@ -1172,7 +1188,13 @@ fn setup(p: &Parsed, bytes: &[u8]) -> Result<Setup> {
     // Connectivity only: the decoder never reads the finest level's edge and vertex tables.
     let hierarchy = Hierarchy::skeleton(&base, h.levels as u32, p.split)
         .map_err(|e| derr(off, format!("base mesh chunk: {e}")))?;
-    let forest = Forest::new(&hierarchy)?;
+    Ok((hierarchy, base_q, base_positions))
+}
+
+/// The offspring forest of a stream's hierarchy, checked against the header.
+fn setup_forest(p: &Parsed, hierarchy: &Hierarchy) -> Result<Forest> {
+    let h = &p.c.header;
+    let forest = Forest::new(hierarchy)?;
     if forest.num_trees != h.num_trees as usize {
         return Err(derr(
             10,
@@ -1185,12 +1207,7 @@ fn setup(p: &Parsed, bytes: &[u8]) -> Result<Setup> {
     if forest.num_nodes > spiht::MAX_NODES {
         return Err(derr(10, "too many coefficients"));
     }
-    Ok(Setup {
-        hierarchy,
-        forest,
-        base_q,
-        base_positions,
-    })
+    Ok(forest)
 }
 
 /// Decodes a `.swv` stream, or a prefix of it (`opts.max_bytes`), into the finest mesh with
@@ -1228,16 +1245,27 @@ fn decode_in_pool(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
             complete: d.complete,
         });
     }
-    let s = setup(&p, bytes)?;
-    // The coefficients and the synthesis tables are independent: build them in parallel.
+    let (hierarchy, base_q, base_positions) = setup_base(&p, bytes)?;
+    // The forest and coefficients on one side, the synthesis tables on the other: they are
+    // independent, so they are built in parallel.
     let (coded, t) = rayon::join(
-        || decode_coefficients(&p, &s, bytes, opts),
-        || transform(&p, &s.hierarchy),
+        || -> Result<_> {
+            let forest = setup_forest(&p, &hierarchy)?;
+            let coded = decode_coefficients(&p, &forest, bytes, opts)?;
+            Ok((forest, coded))
+        },
+        || transform(&p, &hierarchy),
     );
-    let (coefs, used, planes_complete, planes, complete) = coded?;
-    let positions = reconstruct_with(&p, &s, &coefs, &t?)?;
+    let (forest, (coefs, used, planes_complete, planes, complete)) = coded?;
+    let positions = reconstruct_with(
+        &p,
+        (&base_q, &base_positions),
+        forest.num_nodes,
+        &coefs,
+        &t?,
+    )?;
     // The finest faces move into the mesh (the hierarchy is not used again).
-    let mut hier = s.hierarchy;
+    let mut hier = hierarchy;
     let finest = hier.topologies.pop().unwrap_or_default();
     let mesh = Mesh {
         positions,
@@ -1258,12 +1286,12 @@ fn decode_in_pool(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
 /// whether everything was decoded.
 fn decode_coefficients(
     p: &Parsed,
-    s: &Setup,
+    forest: &Forest,
     bytes: &[u8],
     opts: &DecodeOptions,
 ) -> Result<(Coefficients, usize, u32, u32, bool)> {
     let limit = bytes.len();
-    let mut coefs = Coefficients::new(&s.forest);
+    let mut coefs = Coefficients::new(forest);
     let contexts = p.flags & F_CONTEXTS != 0;
     let planes = spiht::num_planes(p.top);
     let mut planes_complete = planes;
@@ -1271,8 +1299,8 @@ fn decode_coefficients(
     let mut used = p.c.chunks[0].offset as usize + p.c.chunks[0].len as usize;
     match p.layout {
         Layout::Embedded => {
-            let roots: Vec<u32> = (0..s.forest.num_trees as u32).collect();
-            let mut d = SpihtDecoder::new(&s.forest, &roots, p.top, contexts);
+            let roots: Vec<u32> = (0..forest.num_trees as u32).collect();
+            let mut d = SpihtDecoder::new(forest, &roots, p.top, contexts);
             let mut i = 1;
             while d.plane() >= 0 {
                 let Some(e) = p.c.chunks.get(i) else {
@@ -1302,7 +1330,7 @@ fn decode_coefficients(
         }
         Layout::Trees => {
             let wanted = opts.trees.as_ref().map(|t| {
-                let mut w = vec![false; s.forest.num_trees];
+                let mut w = vec![false; forest.num_trees];
                 for &x in t {
                     if let Some(b) = w.get_mut(x as usize) {
                         *b = true;
@@ -1310,9 +1338,9 @@ fn decode_coefficients(
                 }
                 w
             });
-            let mut seen = vec![false; s.forest.num_trees];
+            let mut seen = vec![false; forest.num_trees];
             for (i, e) in p.c.chunks.iter().enumerate().skip(1) {
-                if e.kind != ChunkKind::Tree || e.id as usize >= s.forest.num_trees {
+                if e.kind != ChunkKind::Tree || e.id as usize >= forest.num_trees {
                     return Err(derr(
                         p.c.header_len,
                         format!("{} is not a tree chunk of this forest", e.name(i)),
@@ -1336,7 +1364,7 @@ fn decode_coefficients(
                     continue;
                 }
                 used = used.max(e.offset as usize + data.len());
-                let mut d = SpihtDecoder::new(&s.forest, &[t as u32], p.top, contexts);
+                let mut d = SpihtDecoder::new(forest, &[t as u32], p.top, contexts);
                 let mut dec = Decoder::new(data);
                 while d.decode_plane(&mut dec, &mut coefs) {}
                 if d.plane() >= 0 {
@@ -1378,30 +1406,38 @@ fn transform<'h>(p: &Parsed, hier: &'h Hierarchy) -> Result<AnyTransform<'h>> {
 }
 
 fn reconstruct(p: &Parsed, s: &Setup, coefs: &Coefficients) -> Result<Mesh> {
-    let positions = reconstruct_with(p, s, coefs, &transform(p, &s.hierarchy)?)?;
+    let positions = reconstruct_with(
+        p,
+        (&s.base_q, &s.base_positions),
+        s.forest.num_nodes,
+        coefs,
+        &transform(p, &s.hierarchy)?,
+    )?;
     let hier = &s.hierarchy;
     Ok(hier.level_mesh(hier.levels(), positions))
 }
 
-/// The finest positions from the coefficients.
+/// The finest positions from the coefficients of the `num_nodes` forest nodes, the base
+/// (integer base coefficients in lossless mode, base positions otherwise; [`Setup`]) and
+/// the inverse transform.
 fn reconstruct_with(
     p: &Parsed,
-    s: &Setup,
+    (base_q, base_positions): (&[[i64; 3]], &[DVec3]),
+    num_nodes: usize,
     coefs: &Coefficients,
     t: &AnyTransform,
 ) -> Result<Vec<DVec3>> {
     let h = &p.c.header;
-    let hier = &s.hierarchy;
-    let v0 = hier.num_vertices(0);
+    let v0 = base_positions.len().max(base_q.len());
     let grid = Grid {
         origin: h.grid_origin,
         step: h.grid_step,
     };
     let positions = match t {
         AnyTransform::Int(t) => {
-            let mut data = s.base_q.clone();
-            data.reserve(s.forest.num_nodes);
-            for n in 0..s.forest.num_nodes {
+            let mut data = base_q.to_vec();
+            data.reserve(num_nodes);
+            for n in 0..num_nodes {
                 let mut d = [0i64; 3];
                 for (c, x) in d.iter_mut().enumerate() {
                     let e = 3 * n + c;
@@ -1418,29 +1454,20 @@ fn reconstruct_with(
             data.iter().map(|&q| grid.dequantize(q)).collect()
         }
         AnyTransform::Float(t) => {
-            let mut flat = Vec::with_capacity(v0 + s.forest.num_nodes);
-            flat.extend_from_slice(&s.base_positions);
-            flat.par_extend(
-                (0..s.forest.num_nodes)
-                    .into_par_iter()
-                    .with_min_len(8192)
-                    .map(|n| {
-                        let mut d = DVec3::ZERO;
-                        for c in 0..3 {
-                            let e = 3 * n + c;
-                            let w = coefs.width[e];
-                            if w != INSIGNIFICANT {
-                                d[c] = quantize::reconstruct(
-                                    coefs.lo[e],
-                                    w as u32,
-                                    coefs.neg[e],
-                                    h.steps[c],
-                                );
-                            }
-                        }
-                        d
-                    }),
-            );
+            let mut flat = Vec::with_capacity(v0 + num_nodes);
+            flat.extend_from_slice(base_positions);
+            flat.par_extend((0..num_nodes).into_par_iter().with_min_len(8192).map(|n| {
+                let mut d = DVec3::ZERO;
+                for c in 0..3 {
+                    let e = 3 * n + c;
+                    let w = coefs.width[e];
+                    if w != INSIGNIFICANT {
+                        d[c] =
+                            quantize::reconstruct(coefs.lo[e], w as u32, coefs.neg[e], h.steps[c]);
+                    }
+                }
+                d
+            }));
             t.inverse(&mut flat)?;
             flat
         }

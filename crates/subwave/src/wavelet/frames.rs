@@ -36,12 +36,28 @@ pub struct Frame {
 impl Frame {
     /// The frame with the given normal direction and first tangent direction (made
     /// orthonormal; see the module documentation for the fallbacks).
+    ///
+    /// Bit for bit `glam`'s `try_normalize` of the normal, then of the tangent's part
+    /// orthogonal to it (each squared length computed once; inlined into the callers' loops
+    /// so that the square roots and divisions of consecutive frames overlap).
+    #[inline(always)]
     pub fn new(normal: DVec3, tangent: DVec3) -> Frame {
-        let n = normal.try_normalize().unwrap_or(DVec3::Z);
+        // `try_normalize`: `x * (1 / sqrt(x·x))` when that reciprocal is finite and positive.
+        let rn = 1.0 / normal.dot(normal).sqrt();
+        let n = if rn.is_finite() && rn > 0.0 {
+            normal * rn
+        } else {
+            DVec3::Z
+        };
         let t = tangent - tangent.dot(n) * n;
-        let t = if t.length_squared() > 1e-24 * tangent.length_squared() {
-            t.try_normalize()
-                .unwrap_or_else(|| n.any_orthonormal_vector())
+        let tt = t.dot(t);
+        let t = if tt > 1e-24 * tangent.dot(tangent) {
+            let rt = 1.0 / tt.sqrt();
+            if rt.is_finite() && rt > 0.0 {
+                t * rt
+            } else {
+                n.any_orthonormal_vector()
+            }
         } else {
             n.any_orthonormal_vector()
         };

@@ -743,14 +743,15 @@ fn predicted(even: &[DVec3], odd: &[DVec3], v: u32) -> DVec3 {
 /// 5.7) of level-`j` triangle `f`, on the predicted level `j + 1` (`even`, `odd`).
 #[inline]
 fn child_normals(t: &Topology, even: &[DVec3], odd: &[DVec3], f: usize) -> [DVec3; 4] {
-    let nc = even.len() as u32;
     let fv = t.face_vertices(f);
     let fe = t.face_edges(f);
-    let m = [nc + fe[0], nc + fe[1], nc + fe[2]];
-    // Children (v0 m0 m2), (v1 m1 m0), (v2 m2 m1), (m0 m1 m2).
-    let p = |v: u32| predicted(even, odd, v);
+    // Children (v0 m0 m2), (v1 m1 m0), (v2 m2 m1), (m0 m1 m2), with `m_i` the odd vertex
+    // `V_j + fe[i]`: the corners are even and the edge points odd, so [`predicted`]'s
+    // test is known here (same values: `0 + x` for the even ones).
+    let p = |v: u32| DVec3::ZERO + even[v as usize];
+    let q = |e: u32| odd[e as usize];
     let (p0, p1, p2) = (p(fv[0]), p(fv[1]), p(fv[2]));
-    let (q0, q1, q2) = (p(m[0]), p(m[1]), p(m[2]));
+    let (q0, q1, q2) = (q(fe[0]), q(fe[1]), q(fe[2]));
     let newell = |a: DVec3, b: DVec3, c: DVec3| {
         let mut n = DVec3::ZERO;
         n += a.cross(b);
