@@ -90,11 +90,17 @@ pub struct PrepareArgs {
     #[arg(long, value_name = "N")]
     pub base_faces: Option<u32>,
     /// Feature edges of the remesh: dihedral angle in degrees (kept sharp as creases).
+    /// Default: 40 when the edges sharper than that form a CAD-like crease network
+    /// (`codec::prepare::detect_feature_angle`), else none.
     #[arg(long, value_name = "DEG")]
     pub sharp_angle: Option<f64>,
+    /// Do not detect feature edges when --sharp-angle is not given.
+    #[arg(long)]
+    pub no_auto_features: bool,
     /// How an irregular input is remeshed: `normal` re-samples the MAPS remesh into a normal
     /// mesh (Guskov et al. 2000) coded with the unlifted butterfly wavelet, `maps` keeps it
-    /// (lifted butterfly); `auto` is `normal` unless --sharp-angle marks feature edges.
+    /// (lifted butterfly); `auto` is `normal` unless there are feature edges (given by
+    /// --sharp-angle or detected).
     #[arg(long, value_enum, default_value_t = RemeshArg::Auto)]
     pub remesh: RemeshArg,
 }
@@ -107,6 +113,7 @@ impl PrepareArgs {
             base_faces: self.base_faces.map(|n| n as usize),
             quads,
             sharp_angle: self.sharp_angle,
+            detect_features: !self.no_auto_features,
             normal: self.remesh.into(),
             force_remesh: false,
         }
@@ -176,6 +183,11 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     }
     if let Some(n) = &prepared.normal {
         println!("{}", print::normal_stats(n));
+    }
+    if let (true, Some(a)) = (prepared.features_detected, prepared.sharp_angle) {
+        println!(
+            "features: edges sharper than {a}° form a crease network: kept as creases (--sharp-angle to choose the angle, --no-auto-features to ignore them)"
+        );
     }
     if let Some(rms) = prepared.remesh_rms {
         println!("{}", print::remesh_distance(rms, mesh.diagonal()));

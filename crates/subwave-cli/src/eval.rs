@@ -186,6 +186,8 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             "remeshed": prep.remeshed.is_some(),
             "method": prep.remeshed.as_ref().map(|r| r.method.name()),
             "normal_mesh": prep.normal.is_some(),
+            "sharp_angle": prep.sharp_angle,
+            "features_detected": prep.features_detected,
             "remesh_rms": prep.remesh_rms,
             "levels": h.levels(),
             "base_faces": h.base.num_faces(),
@@ -210,10 +212,20 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         "{name}: {} vertices; {}{} levels over {} base faces -> {} vertices; {} wavelet; {} bytes in {:.0} ms",
         mesh.num_vertices(),
         match &prep.remeshed {
-            Some(r) if prep.normal.is_some() => {
-                format!("remeshed ({}, normal mesh), ", r.method.name())
-            }
-            Some(r) => format!("remeshed ({}), ", r.method.name()),
+            Some(r) => format!(
+                "remeshed ({}{}{}), ",
+                r.method.name(),
+                if prep.normal.is_some() {
+                    ", normal mesh"
+                } else {
+                    ""
+                },
+                match (prep.sharp_angle, prep.features_detected) {
+                    (Some(a), true) => format!(", creases above {a}° detected"),
+                    (Some(a), false) => format!(", creases above {a}°"),
+                    _ => String::new(),
+                }
+            ),
             None => String::new(),
         },
         h.levels(),
