@@ -391,12 +391,33 @@ struct RingScratch {
     /// Masks of interior edges between interior ends, by valences (`ka · CACHED + kb`):
     /// they depend on nothing else.
     interior: Vec<Option<EdgeMask>>,
+    /// The ordered edges of each vertex met so far ([`ordered_edges`], computed once per
+    /// vertex instead of once per edge end): `ring_store[start..start + len]` for
+    /// `rings[v] = [start, len]` (`start = NONE` if not computed yet).
+    rings: Vec<[u32; 2]>,
+    ring_store: Vec<u32>,
 }
 
 /// Valences below this have their interior masks cached.
 const CACHED: usize = 24;
 
 impl RingScratch {
+    /// The range of `ring_store` holding vertex `v`'s [`ordered_edges`].
+    fn ring(&mut self, topo: &Topology, v: usize) -> std::ops::Range<usize> {
+        if self.rings.is_empty() {
+            self.rings = vec![[NONE, 0]; topo.num_vertices as usize];
+        }
+        let [start, len] = self.rings[v];
+        if start != NONE {
+            return start as usize..start as usize + len as usize;
+        }
+        ordered_edges(topo, v, &mut self.edges, &mut self.used);
+        let start = self.ring_store.len();
+        self.ring_store.extend_from_slice(&self.edges);
+        self.rings[v] = [start as u32, self.edges.len() as u32];
+        start..self.ring_store.len()
+    }
+
     /// Adds `w · x` to the stencil, merging a repeated index (the refiner's builder).
     #[inline]
     fn add(&mut self, x: u32, w: f64) {
@@ -467,13 +488,14 @@ fn general_stencil(topo: &Topology, e: usize, s: &mut RingScratch) {
         }
     };
     for (k, &v) in ends.iter().enumerate() {
-        ordered_edges(topo, v as usize, &mut s.edges, &mut s.used);
-        let n = s.edges.len();
-        let at = s.edges.iter().position(|&x| x as usize == e).unwrap_or(0);
+        let range = s.ring(topo, v as usize);
+        let edges = &s.ring_store[range];
+        let n = edges.len();
+        let at = edges.iter().position(|&x| x as usize == e).unwrap_or(0);
         s.ring_sharp[k].clear();
         s.ring_verts[k].clear();
         for j in 0..n {
-            let x = s.edges[(at + j) % n];
+            let x = edges[(at + j) % n];
             s.ring_sharp[k].push(sharp(x));
             s.ring_verts[k].push(topo.other_vertex(x as usize, v));
         }
