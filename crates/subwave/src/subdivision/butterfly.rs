@@ -351,8 +351,15 @@ pub fn untagged_level_table(topo: &Topology) -> StencilTable {
                 wing(l[1], b),
             ];
             let all = [a, b, ring[0], ring[1], ring[2], ring[3], ring[4], ring[5]];
-            let distinct = (1..8).all(|i| !all[..i].contains(&all[i]));
-            if distinct && !ring.contains(&NONE) {
+            // Eight distinct vertices, none missing (all pairs compared without early
+            // exits: 28 comparisons the compiler keeps branch-free).
+            let mut ok = ring.iter().fold(true, |ok, &x| ok & (x != NONE));
+            for i in 1..8 {
+                for j in 0..i {
+                    ok &= all[i] != all[j];
+                }
+            }
+            if ok {
                 fast = Some(all);
             }
         }
@@ -396,6 +403,21 @@ struct RingScratch {
     /// `rings[v] = [start, len]` (`start = NONE` if not computed yet).
     rings: Vec<[u32; 2]>,
     ring_store: Vec<u32>,
+    /// Parallel to `ring_store`: the other end of each edge, and its sharpness (boundary
+    /// edges infinitely sharp).
+    ring_other: Vec<u32>,
+    ring_edge_sharp: Vec<f64>,
+}
+
+/// The sharpness [`general_stencil`] gives edge `x` of an untagged level: infinite on the
+/// boundary, 0 inside.
+#[inline]
+fn boundary_sharpness(topo: &Topology, x: u32) -> f64 {
+    if topo.is_boundary_edge(x as usize) {
+        SHARPNESS_INFINITE
+    } else {
+        0.0
+    }
 }
 
 /// Valences below this have their interior masks cached.
@@ -414,6 +436,11 @@ impl RingScratch {
         ordered_edges(topo, v, &mut self.edges, &mut self.used);
         let start = self.ring_store.len();
         self.ring_store.extend_from_slice(&self.edges);
+        for &x in &self.edges {
+            self.ring_other
+                .push(topo.other_vertex(x as usize, v as u32));
+            self.ring_edge_sharp.push(boundary_sharpness(topo, x));
+        }
         self.rings[v] = [start as u32, self.edges.len() as u32];
         start..self.ring_store.len()
     }
@@ -480,27 +507,22 @@ fn ordered_edges(topo: &Topology, v: usize, edges: &mut Vec<u32>, used: &mut Vec
 fn general_stencil(topo: &Topology, e: usize, s: &mut RingScratch) {
     let ends = topo.edge_vertices[e];
     let faces = topo.edge_faces(e);
-    let sharp = |x: u32| {
-        if topo.is_boundary_edge(x as usize) {
-            SHARPNESS_INFINITE
-        } else {
-            0.0
-        }
-    };
     for (k, &v) in ends.iter().enumerate() {
+        // The ring from edge `e` on: edges `(at + j) % n`, `j = 0..n`.
         let range = s.ring(topo, v as usize);
-        let edges = &s.ring_store[range];
-        let n = edges.len();
-        let at = edges.iter().position(|&x| x as usize == e).unwrap_or(0);
+        let at = s.ring_store[range.clone()]
+            .iter()
+            .position(|&x| x as usize == e)
+            .unwrap_or(0);
+        let (sharp, other) = (&s.ring_edge_sharp[range.clone()], &s.ring_other[range]);
         s.ring_sharp[k].clear();
+        s.ring_sharp[k].extend_from_slice(&sharp[at..]);
+        s.ring_sharp[k].extend_from_slice(&sharp[..at]);
         s.ring_verts[k].clear();
-        for j in 0..n {
-            let x = edges[(at + j) % n];
-            s.ring_sharp[k].push(sharp(x));
-            s.ring_verts[k].push(topo.other_vertex(x as usize, v));
-        }
+        s.ring_verts[k].extend_from_slice(&other[at..]);
+        s.ring_verts[k].extend_from_slice(&other[..at]);
     }
-    let sharpness = sharp(e as u32);
+    let sharpness = boundary_sharpness(topo, e as u32);
     let n = EdgeNeighborhood {
         sharpness,
         num_faces: faces.len(),
