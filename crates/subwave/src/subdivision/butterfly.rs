@@ -302,12 +302,6 @@ impl Rules for ButterflyRules {
 pub fn untagged_level_table(topo: &Topology) -> StencilTable {
     let nv = topo.num_vertices as usize;
     let ne = topo.num_edges();
-    let mut offsets = Vec::with_capacity(nv + ne + 1);
-    offsets.extend(0..=nv as u32);
-    let mut indices = Vec::with_capacity(nv + 8 * ne);
-    indices.extend(0..nv as u32);
-    let mut weights = Vec::with_capacity(nv + 8 * ne);
-    weights.resize(nv, 1.0);
     // Interior vertices of valence 6 (no boundary edge: as many faces as edges).
     let regular: Vec<bool> = (0..nv)
         .map(|v| {
@@ -315,6 +309,22 @@ pub fn untagged_level_table(topo: &Topology) -> StencilTable {
             k == 6 && topo.vertex_faces(v).len() == k
         })
         .collect();
+    // Room for 8 entries per edge, and for the longer general stencils (at most the ends,
+    // the opposite vertices and both rings: `k_a + k_b + 4` entries) on the edges of the
+    // other vertices, so that the tables are not reallocated (copied) while they grow.
+    let extra: usize = (0..nv)
+        .filter(|&v| !regular[v])
+        .map(|v| {
+            let k = topo.valence(v);
+            k * (k + 2)
+        })
+        .sum();
+    let mut offsets = Vec::with_capacity(nv + ne + 1);
+    offsets.extend(0..=nv as u32);
+    let mut indices = Vec::with_capacity(nv + 8 * ne + extra);
+    indices.extend(0..nv as u32);
+    let mut weights = Vec::with_capacity(nv + 8 * ne + extra);
+    weights.resize(nv, 1.0);
     // Per edge and side: the opposite vertex and the next and previous edges of the face
     // on that side (side 0: the face traversing the edge in its stored direction, the
     // first; side 1: the other).
