@@ -302,12 +302,6 @@ impl Rules for ButterflyRules {
 pub fn untagged_level_table(topo: &Topology) -> StencilTable {
     let nv = topo.num_vertices as usize;
     let ne = topo.num_edges();
-    let mut offsets = Vec::with_capacity(nv + ne + 1);
-    offsets.extend(0..=nv as u32);
-    let mut indices = Vec::with_capacity(nv + 8 * ne);
-    indices.extend(0..nv as u32);
-    let mut weights = Vec::with_capacity(nv + 8 * ne);
-    weights.resize(nv, 1.0);
     // Interior vertices of valence 6 (no boundary edge: as many faces as edges).
     let regular: Vec<bool> = (0..nv)
         .map(|v| {
@@ -315,6 +309,22 @@ pub fn untagged_level_table(topo: &Topology) -> StencilTable {
             k == 6 && topo.vertex_faces(v).len() == k
         })
         .collect();
+    // Room for 8 entries per edge, and for the longer general stencils (at most the ends,
+    // the opposite vertices and both rings: `k_a + k_b + 4` entries) on the edges of the
+    // other vertices, so that the tables are not reallocated (copied) while they grow.
+    let extra: usize = (0..nv)
+        .filter(|&v| !regular[v])
+        .map(|v| {
+            let k = topo.valence(v);
+            k * (k + 2)
+        })
+        .sum();
+    let mut offsets = Vec::with_capacity(nv + ne + 1);
+    offsets.extend(0..=nv as u32);
+    let mut indices = Vec::with_capacity(nv + 8 * ne + extra);
+    indices.extend(0..nv as u32);
+    let mut weights = Vec::with_capacity(nv + 8 * ne + extra);
+    weights.resize(nv, 1.0);
     // Per edge and side: the opposite vertex and the next and previous edges of the face
     // on that side (side 0: the face traversing the edge in its stored direction, the
     // first; side 1: the other).
@@ -351,8 +361,15 @@ pub fn untagged_level_table(topo: &Topology) -> StencilTable {
                 wing(l[1], b),
             ];
             let all = [a, b, ring[0], ring[1], ring[2], ring[3], ring[4], ring[5]];
-            let distinct = (1..8).all(|i| !all[..i].contains(&all[i]));
-            if distinct && !ring.contains(&NONE) {
+            // Eight distinct vertices, none missing (all pairs compared without early
+            // exits: 28 comparisons the compiler keeps branch-free).
+            let mut ok = ring.iter().fold(true, |ok, &x| ok & (x != NONE));
+            for i in 1..8 {
+                for j in 0..i {
+                    ok &= all[i] != all[j];
+                }
+            }
+            if ok {
                 fast = Some(all);
             }
         }
@@ -391,12 +408,53 @@ struct RingScratch {
     /// Masks of interior edges between interior ends, by valences (`ka · CACHED + kb`):
     /// they depend on nothing else.
     interior: Vec<Option<EdgeMask>>,
+    /// The ordered edges of each vertex met so far ([`ordered_edges`], computed once per
+    /// vertex instead of once per edge end): `ring_store[start..start + len]` for
+    /// `rings[v] = [start, len]` (`start = NONE` if not computed yet).
+    rings: Vec<[u32; 2]>,
+    ring_store: Vec<u32>,
+    /// Parallel to `ring_store`: the other end of each edge, and its sharpness (boundary
+    /// edges infinitely sharp).
+    ring_other: Vec<u32>,
+    ring_edge_sharp: Vec<f64>,
+}
+
+/// The sharpness [`general_stencil`] gives edge `x` of an untagged level: infinite on the
+/// boundary, 0 inside.
+#[inline]
+fn boundary_sharpness(topo: &Topology, x: u32) -> f64 {
+    if topo.is_boundary_edge(x as usize) {
+        SHARPNESS_INFINITE
+    } else {
+        0.0
+    }
 }
 
 /// Valences below this have their interior masks cached.
 const CACHED: usize = 24;
 
 impl RingScratch {
+    /// The range of `ring_store` holding vertex `v`'s [`ordered_edges`].
+    fn ring(&mut self, topo: &Topology, v: usize) -> std::ops::Range<usize> {
+        if self.rings.is_empty() {
+            self.rings = vec![[NONE, 0]; topo.num_vertices as usize];
+        }
+        let [start, len] = self.rings[v];
+        if start != NONE {
+            return start as usize..start as usize + len as usize;
+        }
+        ordered_edges(topo, v, &mut self.edges, &mut self.used);
+        let start = self.ring_store.len();
+        self.ring_store.extend_from_slice(&self.edges);
+        for &x in &self.edges {
+            self.ring_other
+                .push(topo.other_vertex(x as usize, v as u32));
+            self.ring_edge_sharp.push(boundary_sharpness(topo, x));
+        }
+        self.rings[v] = [start as u32, self.edges.len() as u32];
+        start..self.ring_store.len()
+    }
+
     /// Adds `w · x` to the stencil, merging a repeated index (the refiner's builder).
     #[inline]
     fn add(&mut self, x: u32, w: f64) {
@@ -459,26 +517,22 @@ fn ordered_edges(topo: &Topology, v: usize, edges: &mut Vec<u32>, used: &mut Vec
 fn general_stencil(topo: &Topology, e: usize, s: &mut RingScratch) {
     let ends = topo.edge_vertices[e];
     let faces = topo.edge_faces(e);
-    let sharp = |x: u32| {
-        if topo.is_boundary_edge(x as usize) {
-            SHARPNESS_INFINITE
-        } else {
-            0.0
-        }
-    };
     for (k, &v) in ends.iter().enumerate() {
-        ordered_edges(topo, v as usize, &mut s.edges, &mut s.used);
-        let n = s.edges.len();
-        let at = s.edges.iter().position(|&x| x as usize == e).unwrap_or(0);
+        // The ring from edge `e` on: edges `(at + j) % n`, `j = 0..n`.
+        let range = s.ring(topo, v as usize);
+        let at = s.ring_store[range.clone()]
+            .iter()
+            .position(|&x| x as usize == e)
+            .unwrap_or(0);
+        let (sharp, other) = (&s.ring_edge_sharp[range.clone()], &s.ring_other[range]);
         s.ring_sharp[k].clear();
+        s.ring_sharp[k].extend_from_slice(&sharp[at..]);
+        s.ring_sharp[k].extend_from_slice(&sharp[..at]);
         s.ring_verts[k].clear();
-        for j in 0..n {
-            let x = s.edges[(at + j) % n];
-            s.ring_sharp[k].push(sharp(x));
-            s.ring_verts[k].push(topo.other_vertex(x as usize, v));
-        }
+        s.ring_verts[k].extend_from_slice(&other[at..]);
+        s.ring_verts[k].extend_from_slice(&other[..at]);
     }
-    let sharpness = sharp(e as u32);
+    let sharpness = boundary_sharpness(topo, e as u32);
     let n = EdgeNeighborhood {
         sharpness,
         num_faces: faces.len(),
