@@ -645,6 +645,15 @@ fn par_update<T: Send, F: Fn(usize, &mut T) + Sync + Send>(out: &mut [T], f: F) 
         });
 }
 
+/// Runs `f(first, chunk)` over `out` in parallel chunks, `first` the index of the chunk's first
+/// element.
+#[inline]
+fn par_chunks<T: Send, F: Fn(usize, &mut [T]) + Sync + Send>(out: &mut [T], f: F) {
+    out.par_chunks_mut(MIN_LEN)
+        .enumerate()
+        .for_each(|(c, chunk)| f(c * MIN_LEN, chunk));
+}
+
 /// Splits a level's data into its `v`, `e` and `f` parts.
 fn split3<'d, T>(t: &Topology, data: &'d mut [T]) -> (&'d mut [T], &'d mut [T], &'d mut [T]) {
     let (v, rest) = data.split_at_mut(t.num_vertices as usize);
@@ -789,16 +798,6 @@ impl<'a> Ctx<'a> {
         (sum(idx, data), w * recip(idx.len()))
     }
 
-    /// `k · ē_v` as a weighted sum and its overall weight.
-    #[inline]
-    fn scaled_e_bar_v<T: Interpolate>(&self, v: usize, e: &[T], k: f64) -> (T, f64) {
-        if self.symmetric {
-            (self.e_bar_v(v, e), k)
-        } else {
-            Self::scaled_sum(self.t.vertex_edges(v), e, k)
-        }
-    }
-
     /// Vertex update `x ← c0 x + cf f̄_v + ce ē_v`.
     #[inline]
     fn vertex_pass<T: Interpolate>(
@@ -811,10 +810,21 @@ impl<'a> Ctx<'a> {
         ce: f64,
     ) {
         let t = self.t;
-        par_update(v, |i, x| {
-            let (fs, wf) = Self::scaled_sum(t.vertex_faces(i), f, cf);
-            let (es, we) = self.scaled_e_bar_v(i, e, ce);
-            *x = combo3(x, c0, &fs, wf, &es, we);
+        par_chunks(v, |v0, out| {
+            // The chunk's adjacency offsets, sliced once.
+            let fo = &t.vertex_face_offsets[v0..=v0 + out.len()];
+            let eo = &t.vertex_edge_offsets[v0..=v0 + out.len()];
+            for (k, x) in out.iter_mut().enumerate() {
+                let faces = &t.vertex_faces[fo[k] as usize..fo[k + 1] as usize];
+                let (fs, wf) = Self::scaled_sum(faces, f, cf);
+                let (es, we) = if self.symmetric {
+                    (self.e_bar_v(v0 + k, e), ce)
+                } else {
+                    let edges = &t.vertex_edges[eo[k] as usize..eo[k + 1] as usize];
+                    Self::scaled_sum(edges, e, ce)
+                };
+                *x = combo3(x, c0, &fs, wf, &es, we);
+            }
         });
     }
 
@@ -822,6 +832,22 @@ impl<'a> Ctx<'a> {
     #[inline]
     fn face_pass<T: Interpolate>(&self, f: &mut [T], v: &[T], e: &[T], c0: f64, cv: f64, ce: f64) {
         let t = self.t;
+        let nf = t.num_faces();
+        if t.face_arity == 4 && t.face_vertices.len() == 4 * nf && t.face_edges.len() == 4 * nf {
+            // All quads (every level after the first split): the corners in fixed fours.
+            let (wv, we) = (cv * recip(4), ce * recip(4));
+            par_chunks(f, |f0, out| {
+                let r = 4 * f0..4 * (f0 + out.len());
+                let fv = t.face_vertices[r.clone()].chunks_exact(4);
+                let fe = t.face_edges[r].chunks_exact(4);
+                for ((x, cv), ce) in out.iter_mut().zip(fv).zip(fe) {
+                    let vs = sum(cv, v);
+                    let es = sum(ce, e);
+                    *x = combo3(x, c0, &vs, wv, &es, we);
+                }
+            });
+            return;
+        }
         par_update(f, |i, x| {
             let (vs, wv) = Self::scaled_sum(t.face_vertices(i), v, cv);
             let (es, we) = Self::scaled_sum(t.face_edges(i), e, ce);
@@ -842,17 +868,23 @@ impl<'a> Ctx<'a> {
     ) {
         let t = self.t;
         if from_faces {
-            par_update(e, |i, x| {
-                let (s, w) = Self::scaled_sum(t.edge_faces(i), src, c1);
-                *x = combo2(x, c0, &s, w);
+            par_chunks(e, |e0, out| {
+                let o = &t.edge_face_offsets[e0..=e0 + out.len()];
+                for (k, x) in out.iter_mut().enumerate() {
+                    let faces = &t.edge_faces[o[k] as usize..o[k + 1] as usize];
+                    let (s, w) = Self::scaled_sum(faces, src, c1);
+                    *x = combo2(x, c0, &s, w);
+                }
             });
         } else {
             let h = 0.5 * c1;
-            par_update(e, |i, x| {
-                let [p, q] = t.edge_vertices[i];
-                let mut s = src[p as usize];
-                s.add_scaled(&src[q as usize], 1.0);
-                *x = combo2(x, c0, &s, h);
+            par_chunks(e, |e0, out| {
+                let ev = &t.edge_vertices[e0..e0 + out.len()];
+                for (x, &[p, q]) in out.iter_mut().zip(ev) {
+                    let mut s = src[p as usize];
+                    s.add_scaled(&src[q as usize], 1.0);
+                    *x = combo2(x, c0, &s, h);
+                }
             });
         }
     }
