@@ -377,7 +377,7 @@ fn fold_repair_removes_injected_folds() {
         pushed += 1;
     }
     let before = pos.clone();
-    let fr = repair_folds(&mut pos, &mut hints, &topo, &fixed, &proj, 12);
+    let fr = repair_folds(&mut pos, &mut hints, &topo, &fixed, &proj, 12, None);
     assert!(
         fr.flipped_before >= pushed,
         "{pushed} pushes gave only {fr:?}"

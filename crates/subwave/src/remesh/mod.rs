@@ -427,7 +427,8 @@ pub fn remesh_with_progress(
         let mut base_fixed = vec![false; fine.len()];
         base_fixed[..nb].fill(true);
         let topo = &h.topologies[opts.levels as usize];
-        let fr = fold_repair::repair_folds(&mut fine, &mut hints, topo, &base_fixed, &proj, 12);
+        let fr =
+            fold_repair::repair_folds(&mut fine, &mut hints, topo, &base_fixed, &proj, 12, None);
         tracing::debug!(?fr, "fold repair after shrink-wrapping");
         flipped_after = fr.flipped_after;
     } else {
@@ -465,12 +466,19 @@ pub fn remesh_with_progress(
         // Final guarded projection of every free vertex onto its closest input point (a
         // relaxation step of length zero), then untangling again.
         resample::relax(&mut fine, &mut hints, topo, &pinned, &proj, 1, 0.0);
-        let (left, opposed) =
-            resample::untangle_counts(&mut fine, &mut hints, topo, &pinned, &proj, 12);
+        let suspects = resample::untangle_bad(&mut fine, &mut hints, topo, &pinned, &proj, 12);
         // Last, the faces still flipped or degenerate: vertices into their stars' kernels,
         // discs re-embedded.
-        let fr = fold_repair::repair_folds(&mut fine, &mut hints, topo, &pinned, &proj, 12);
-        tracing::debug!(left, opposed, ?fr, "fold repair");
+        let fr = fold_repair::repair_folds(
+            &mut fine,
+            &mut hints,
+            topo,
+            &pinned,
+            &proj,
+            12,
+            Some(&suspects),
+        );
+        tracing::debug!(suspects = suspects.len(), ?fr, "fold repair");
         let left = fr.flipped_after;
         flipped_after = fr.flipped_after;
         tracing::debug!(
