@@ -388,7 +388,7 @@ fn reembed(
     let mut moved = 0;
     let mut in_region = vec![false; nv];
     for faces in groups.values() {
-        for k in 1..=4 {
+        for k in 1..=6 {
             // The disc: the group's vertices grown by k rings.
             let mut verts: Vec<u32> = faces
                 .iter()
