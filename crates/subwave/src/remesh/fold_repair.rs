@@ -176,6 +176,7 @@ pub fn repair_folds(
     // of bad faces, then polish the discs' new faces vertex by vertex.
     // Repeated while it helps (at most three times).
     let mut bad = bad;
+    let mut failed = std::collections::HashSet::new();
     for _ in 0..3 {
         if bad.is_empty() {
             break;
@@ -185,7 +186,7 @@ pub fn repair_folds(
             bad = bad.len(),
             "fold repair: vertex rounds"
         );
-        let moved = reembed(pos, hints, topo, fixed, proj, &bad);
+        let moved = reembed(pos, hints, topo, fixed, proj, &bad, &mut failed);
         tracing::debug!(
             ms = t0.elapsed().as_secs_f64() * 1e3,
             moved,
@@ -354,7 +355,7 @@ fn saved_hint(free: &[u32], saved: &[(DVec3, u32)], v: u32) -> u32 {
 /// input's tangent plane is Tutte's barycentric embedding (fold-free for a convex ring,
 /// Floater 1997), and are projected onto the input. A re-embedding is kept only if it lowers
 /// the number of bad faces of the disc without pulling faces off the input. Returns the
-/// number of vertices moved.
+/// number of vertices moved. Groups in `failed` are skipped; groups that fail are added.
 fn reembed(
     pos: &mut [DVec3],
     hints: &mut [u32],
@@ -362,6 +363,7 @@ fn reembed(
     fixed: &[bool],
     proj: &Projector,
     bad: &[u32],
+    failed: &mut std::collections::HashSet<Vec<u32>>,
 ) -> usize {
     let nv = pos.len();
     // Groups of bad faces sharing vertices (union-find over the faces' vertices).
@@ -388,6 +390,11 @@ fn reembed(
     let mut moved = 0;
     let mut in_region = vec![false; nv];
     for faces in groups.values() {
+        // A group that could not be repaired before is skipped.
+        if failed.contains(faces) {
+            continue;
+        }
+        let mut repaired = false;
         for k in 1..=6 {
             // The disc: the group's vertices grown by k rings.
             let mut verts: Vec<u32> = faces
@@ -493,12 +500,16 @@ fn reembed(
             let after = score(pos, hints);
             if after.0 < before.0 && after.1 <= before.1.max(0.05 * before.2) {
                 moved += free.len();
+                repaired = true;
                 break;
             }
             for (&v, &(p, t)) in free.iter().zip(&saved) {
                 pos[v as usize] = p;
                 hints[v as usize] = t;
             }
+        }
+        if !repaired {
+            failed.insert(faces.clone());
         }
     }
     moved
