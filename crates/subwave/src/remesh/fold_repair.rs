@@ -176,7 +176,7 @@ pub fn repair_folds(
     // of bad faces, then polish the discs' new faces vertex by vertex.
     // Repeated while it helps (at most three times).
     let mut bad = bad;
-    let mut failed = std::collections::HashSet::new();
+    let mut failed = std::collections::HashMap::new();
     for _ in 0..3 {
         if bad.is_empty() {
             break;
@@ -355,7 +355,8 @@ fn saved_hint(free: &[u32], saved: &[(DVec3, u32)], v: u32) -> u32 {
 /// input's tangent plane is Tutte's barycentric embedding (fold-free for a convex ring,
 /// Floater 1997), and are projected onto the input. A re-embedding is kept only if it lowers
 /// the number of bad faces of the disc without pulling faces off the input. Returns the
-/// number of vertices moved. Groups in `failed` are skipped; groups that fail are added.
+/// number of vertices moved. Groups in `failed` whose corners are where they were when they
+/// failed are skipped; groups that fail are added with their corners' positions.
 fn reembed(
     pos: &mut [DVec3],
     hints: &mut [u32],
@@ -363,7 +364,7 @@ fn reembed(
     fixed: &[bool],
     proj: &Projector,
     bad: &[u32],
-    failed: &mut std::collections::HashSet<Vec<u32>>,
+    failed: &mut std::collections::HashMap<Vec<u32>, Vec<DVec3>>,
 ) -> usize {
     let nv = pos.len();
     // Groups of bad faces sharing vertices (union-find over the faces' vertices).
@@ -390,8 +391,17 @@ fn reembed(
     let mut moved = 0;
     let mut in_region = vec![false; nv];
     for faces in groups.values() {
-        // A group that could not be repaired before is skipped.
-        if failed.contains(faces) {
+        // A group that could not be repaired before, and whose vertices have not moved
+        // since, is skipped.
+        let corners: Vec<DVec3> = faces
+            .iter()
+            .flat_map(|&f| {
+                topo.face_vertices(f as usize)
+                    .iter()
+                    .map(|&v| pos[v as usize])
+            })
+            .collect();
+        if failed.get(faces) == Some(&corners) {
             continue;
         }
         let mut repaired = false;
@@ -509,7 +519,7 @@ fn reembed(
             }
         }
         if !repaired {
-            failed.insert(faces.clone());
+            failed.insert(faces.clone(), corners);
         }
     }
     moved
