@@ -39,9 +39,11 @@ fn check(input: &Mesh, r: &Remeshed, levels: u32) -> f64 {
         assert!(ren.vertices.iter().enumerate().all(|(i, &v)| i as u32 == v));
     }
     assert!(m.positions.iter().all(|p| p.is_finite()));
-    assert!(
-        r.quality.flipped * 20 <= m.num_faces(),
-        "flipped faces: {:?}",
+    // No face turned over against the input, none degenerate.
+    assert_eq!(
+        (r.quality.flipped, r.quality.degenerate),
+        (0, 0),
+        "flipped / degenerate faces: {:?}",
         r.quality
     );
     let d = distance(input, m, 20_000).unwrap();
@@ -346,4 +348,55 @@ fn folded_parameters_are_untangled() {
         assert!(p.bary.iter().all(|&x| (0.0..=1.0).contains(&x)));
         assert!((p.bary.iter().sum::<f64>() - 1.0).abs() < 1e-9);
     }
+}
+
+/// Folds injected into a clean remesh of a sphere (a few vertices pushed over a neighbour,
+/// onto the surface, so that their faces turn over) are found and removed by the final
+/// repair pass, which moves positions only and leaves no flipped or degenerate face.
+#[test]
+fn fold_repair_removes_injected_folds() {
+    use subwave::remesh::fold_repair::repair_folds;
+    use subwave::remesh::resample::Projector;
+    let input = generate::icosphere(3);
+    let tris: Vec<[u32; 3]> = input.faces().map(|f| [f[0], f[1], f[2]]).collect();
+    let proj = Projector::new(&input.positions, &tris).unwrap();
+    let r = remesh(&input, &opts(3, 40)).unwrap();
+    let topo = Topology::build(&r.mesh);
+    let mut pos = r.mesh.positions.clone();
+    let mut hints: Vec<u32> = pos.iter().map(|&p| proj.closest(p).1).collect();
+    let fixed = vec![false; pos.len()];
+    // Push every 97th vertex (far apart) over its first neighbour.
+    let mut pushed = 0;
+    for v in (0..pos.len()).step_by(97) {
+        let e = topo.vertex_edges(v)[0];
+        let w = topo.other_vertex(e as usize, v as u32) as usize;
+        let target = pos[w] + 0.6 * (pos[w] - pos[v]);
+        let (q, t) = proj.closest(target);
+        pos[v] = q;
+        hints[v] = t;
+        pushed += 1;
+    }
+    let before = pos.clone();
+    let fr = repair_folds(&mut pos, &mut hints, &topo, &fixed, &proj, 12, None);
+    assert!(
+        fr.flipped_before >= pushed,
+        "{pushed} pushes gave only {fr:?}"
+    );
+    assert_eq!((fr.flipped_after, fr.degenerate_after), (0, 0), "{fr:?}");
+    // Connectivity untouched, every vertex still on the sphere, only the pushed vertices'
+    // neighbourhoods moved.
+    assert_eq!(pos.len(), before.len());
+    for p in &pos {
+        let (q, _) = proj.closest(*p);
+        assert!(q.distance(*p) < 1e-9);
+    }
+    let moved = pos.iter().zip(&before).filter(|(a, b)| a != b).count();
+    assert!(moved <= 40 * pushed, "{moved} vertices moved");
+    // And the measure agrees.
+    let mesh = Mesh {
+        positions: pos,
+        ..r.mesh.clone()
+    };
+    let q = subwave::remesh::quality::measure(&mesh, &proj);
+    assert_eq!((q.flipped, q.degenerate), (0, 0), "{q:?}");
 }

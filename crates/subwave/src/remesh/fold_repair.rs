@@ -58,24 +58,66 @@ fn flip_sign(fv: &[u32], pos: &[DVec3], hints: &[u32], proj: &Projector) -> f64 
     n.dot(proj.normals[tri as usize])
 }
 
-/// Counts of flipped (normal opposing the input's) and degenerate faces.
-fn counts(topo: &Topology, pos: &[DVec3], hints: &[u32], proj: &Projector) -> (usize, usize) {
-    (0..topo.num_faces())
-        .into_par_iter()
-        .map(|f| {
-            let fv = topo.face_vertices(f);
-            let degenerate = min_angle(fv, pos) < DEGENERATE_DEGREES
-                || face_normal(fv, pos).length_squared() == 0.0;
-            let flipped = flip_sign(fv, pos, hints, proj) < 0.0;
-            (usize::from(flipped), usize::from(degenerate))
+/// A face's flip sign (as [`flip_sign`]), smallest angle (degrees), and whether it is
+/// degenerate (as [`super::quality::Quality::degenerate`]).
+type FaceState = (f64, f64, bool);
+
+fn face_state(fv: &[u32], pos: &[DVec3], hints: &[u32], proj: &Projector) -> FaceState {
+    let angle = min_angle(fv, pos);
+    let degenerate = angle < DEGENERATE_DEGREES || face_normal(fv, pos).length_squared() == 0.0;
+    (flip_sign(fv, pos, hints, proj), angle, degenerate)
+}
+
+/// Re-measures the faces around the vertices that moved since `last` was taken, and takes
+/// `last` again.
+fn refresh(
+    state: &mut [FaceState],
+    last: &mut [DVec3],
+    topo: &Topology,
+    pos: &[DVec3],
+    hints: &[u32],
+    proj: &Projector,
+) {
+    let mut faces: Vec<u32> = (0..pos.len())
+        .filter(|&v| pos[v] != last[v])
+        .flat_map(|v| topo.vertex_faces(v).iter().copied())
+        .collect();
+    faces.sort_unstable();
+    faces.dedup();
+    let updates: Vec<FaceState> = faces
+        .par_iter()
+        .map(|&f| face_state(topo.face_vertices(f as usize), pos, hints, proj))
+        .collect();
+    for (&f, u) in faces.iter().zip(updates) {
+        state[f as usize] = u;
+    }
+    last.copy_from_slice(pos);
+}
+
+/// The bad faces of `state` (as [`bad_face`] with [`BAD_ANGLE`]).
+fn bad_of(state: &[FaceState]) -> Vec<u32> {
+    (0..state.len() as u32)
+        .filter(|&f| {
+            let s = state[f as usize];
+            s.0 <= 0.0 || s.1 < BAD_ANGLE
         })
-        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+        .collect()
+}
+
+/// Counts of flipped (normal opposing the input's) and degenerate faces of `state`.
+fn counts(state: &[FaceState]) -> (usize, usize) {
+    (
+        state.iter().filter(|s| s.0 < 0.0).count(),
+        state.iter().filter(|s| s.2).count(),
+    )
 }
 
 /// Repairs flipped and degenerate faces of a level (see the module documentation): at most
 /// `rounds` Gauss-Seidel rounds over the free vertices of the bad faces, the region growing
 /// by one ring per round (up to three). `hints[v]` is an input triangle near vertex `v`
-/// (updated as vertices move); `fixed` vertices do not move.
+/// (updated as vertices move); `fixed` vertices do not move. `suspects`: the only faces that
+/// can be flipped or have an angle below 2° (as [`super::resample::untangle_bad`] returns
+/// them), or `None` to measure every face.
 ///
 /// Preconditions: `pos`, `hints` and `fixed` have `topo.num_vertices` entries; the vertices
 /// lie on the input behind `proj`.
@@ -86,21 +128,39 @@ pub fn repair_folds(
     fixed: &[bool],
     proj: &Projector,
     rounds: u32,
+    suspects: Option<&[u32]>,
 ) -> FoldRepair {
-    let (flipped_before, degenerate_before) = counts(topo, pos, hints, proj);
+    let t0 = std::time::Instant::now();
+    let mut state: Vec<FaceState> = match suspects {
+        None => (0..topo.num_faces())
+            .into_par_iter()
+            .map(|f| face_state(topo.face_vertices(f), pos, hints, proj))
+            .collect(),
+        Some(faces) => {
+            let mut state = vec![(1.0, 60.0, false); topo.num_faces()];
+            let measured: Vec<FaceState> = faces
+                .par_iter()
+                .map(|&f| face_state(topo.face_vertices(f as usize), pos, hints, proj))
+                .collect();
+            for (&f, m) in faces.iter().zip(measured) {
+                state[f as usize] = m;
+            }
+            state
+        }
+    };
+    let mut last = pos.to_vec();
+    let (flipped_before, degenerate_before) = counts(&state);
     let mut out = FoldRepair {
         flipped_before,
         degenerate_before,
         ..FoldRepair::default()
     };
-    let all_bad = |pos: &[DVec3], hints: &[u32]| -> Vec<u32> {
-        (0..topo.num_faces() as u32)
-            .into_par_iter()
-            .filter(|&f| bad_face(topo.face_vertices(f as usize), pos, hints, proj, BAD_ANGLE))
-            .collect()
-    };
     let mut origin: Vec<Option<(DVec3, f64)>> = vec![None; pos.len()];
-    let bad = all_bad(pos, hints);
+    let bad = bad_of(&state);
+    tracing::debug!(
+        ms = t0.elapsed().as_secs_f64() * 1e3,
+        "fold repair: measured"
+    );
     let bad = vertex_rounds(
         pos,
         hints,
@@ -116,16 +176,28 @@ pub fn repair_folds(
     // of bad faces, then polish the discs' new faces vertex by vertex.
     // Repeated while it helps (at most three times).
     let mut bad = bad;
+    let mut failed = std::collections::HashMap::new();
     for _ in 0..3 {
         if bad.is_empty() {
             break;
         }
-        let moved = reembed(pos, hints, topo, fixed, proj, &bad);
+        tracing::debug!(
+            ms = t0.elapsed().as_secs_f64() * 1e3,
+            bad = bad.len(),
+            "fold repair: vertex rounds"
+        );
+        let moved = reembed(pos, hints, topo, fixed, proj, &bad, &mut failed);
+        tracing::debug!(
+            ms = t0.elapsed().as_secs_f64() * 1e3,
+            moved,
+            "fold repair: re-embedded"
+        );
         if moved == 0 {
             break;
         }
         out.moves += moved;
-        let again = all_bad(pos, hints);
+        refresh(&mut state, &mut last, topo, pos, hints, proj);
+        let again = bad_of(&state);
         let again = vertex_rounds(
             pos,
             hints,
@@ -143,7 +215,9 @@ pub fn repair_folds(
             break;
         }
     }
-    let (flipped_after, degenerate_after) = counts(topo, pos, hints, proj);
+    refresh(&mut state, &mut last, topo, pos, hints, proj);
+    let (flipped_after, degenerate_after) = counts(&state);
+    tracing::debug!(ms = t0.elapsed().as_secs_f64() * 1e3, "fold repair: done");
     out.flipped_after = flipped_after;
     out.degenerate_after = degenerate_after;
     out
@@ -151,7 +225,7 @@ pub fn repair_folds(
 
 /// Gauss-Seidel rounds of single-vertex moves into the kernel of their stars over the free
 /// vertices of the `bad` faces (the region growing by one ring per round, up to three; at
-/// most `rounds` rounds, fewer once a round at full radius moves nothing). `origin[v]` is
+/// most `rounds` rounds, fewer once a round at full radius no longer lowers their number). `origin[v]` is
 /// where vertex `v` was, and its ring's mean edge length, when the repair first met it.
 /// Returns the bad faces left.
 #[allow(clippy::too_many_arguments)]
@@ -175,6 +249,7 @@ fn vertex_rounds(
             .sum::<f64>()
             / edges.len().max(1) as f64
     };
+    let mut prev = usize::MAX;
     for round in 0..rounds {
         if bad.is_empty() {
             break;
@@ -248,9 +323,11 @@ fn vertex_rounds(
             .filter(|&f| bad_face(topo.face_vertices(f as usize), cur, hint, proj, BAD_ANGLE))
             .collect();
         tracing::debug!(round, bad = bad.len(), region = verts.len(), "fold repair");
-        if round_moves == 0 && round >= 3 {
+        // At full radius, stop once a round no longer lowers the count.
+        if round >= 3 && (round_moves == 0 || bad.len() >= prev) {
             break;
         }
+        prev = bad.len();
     }
     bad
 }
@@ -278,7 +355,8 @@ fn saved_hint(free: &[u32], saved: &[(DVec3, u32)], v: u32) -> u32 {
 /// input's tangent plane is Tutte's barycentric embedding (fold-free for a convex ring,
 /// Floater 1997), and are projected onto the input. A re-embedding is kept only if it lowers
 /// the number of bad faces of the disc without pulling faces off the input. Returns the
-/// number of vertices moved.
+/// number of vertices moved. Groups in `failed` whose corners are where they were when they
+/// failed are skipped; groups that fail are added with their corners' positions.
 fn reembed(
     pos: &mut [DVec3],
     hints: &mut [u32],
@@ -286,6 +364,7 @@ fn reembed(
     fixed: &[bool],
     proj: &Projector,
     bad: &[u32],
+    failed: &mut std::collections::HashMap<Vec<u32>, Vec<DVec3>>,
 ) -> usize {
     let nv = pos.len();
     // Groups of bad faces sharing vertices (union-find over the faces' vertices).
@@ -312,7 +391,21 @@ fn reembed(
     let mut moved = 0;
     let mut in_region = vec![false; nv];
     for faces in groups.values() {
-        for k in 1..=4 {
+        // A group that could not be repaired before, and whose vertices have not moved
+        // since, is skipped.
+        let corners: Vec<DVec3> = faces
+            .iter()
+            .flat_map(|&f| {
+                topo.face_vertices(f as usize)
+                    .iter()
+                    .map(|&v| pos[v as usize])
+            })
+            .collect();
+        if failed.get(faces) == Some(&corners) {
+            continue;
+        }
+        let mut repaired = false;
+        for k in 1..=6 {
             // The disc: the group's vertices grown by k rings.
             let mut verts: Vec<u32> = faces
                 .iter()
@@ -417,12 +510,16 @@ fn reembed(
             let after = score(pos, hints);
             if after.0 < before.0 && after.1 <= before.1.max(0.05 * before.2) {
                 moved += free.len();
+                repaired = true;
                 break;
             }
             for (&v, &(p, t)) in free.iter().zip(&saved) {
                 pos[v as usize] = p;
                 hints[v as usize] = t;
             }
+        }
+        if !repaired {
+            failed.insert(faces.clone(), corners);
         }
     }
     moved

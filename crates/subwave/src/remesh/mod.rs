@@ -404,8 +404,8 @@ pub fn remesh_with_progress(
     }
     timings.resample_ms = ms(t);
     let t = Instant::now();
-    // Faces flipped against the input (quality measure), when untangling counted them.
-    let mut flipped_after = None;
+    // Faces flipped against the input (quality measure), as the final repair counted them.
+    let flipped_after;
     if use_shrinkwrap {
         if opts.method == MethodChoice::Auto {
             warnings.push(format!(
@@ -422,6 +422,15 @@ pub fn remesh_with_progress(
             opts.relax_iterations.max(2),
             &mut |f| progress("resample", f),
         );
+        // The same final repair as after MAPS (the base vertices stay).
+        hints = fine.par_iter().map(|&p| proj.closest(p).1).collect();
+        let mut base_fixed = vec![false; fine.len()];
+        base_fixed[..nb].fill(true);
+        let topo = &h.topologies[opts.levels as usize];
+        let fr =
+            fold_repair::repair_folds(&mut fine, &mut hints, topo, &base_fixed, &proj, 12, None);
+        tracing::debug!(?fr, "fold repair after shrink-wrapping");
+        flipped_after = fr.flipped_after;
     } else {
         progress("relax", 0.0);
         let topo = &h.topologies[opts.levels as usize];
@@ -457,14 +466,21 @@ pub fn remesh_with_progress(
         // Final guarded projection of every free vertex onto its closest input point (a
         // relaxation step of length zero), then untangling again.
         resample::relax(&mut fine, &mut hints, topo, &pinned, &proj, 1, 0.0);
-        let (left, opposed) =
-            resample::untangle_counts(&mut fine, &mut hints, topo, &pinned, &proj, 12);
+        let suspects = resample::untangle_bad(&mut fine, &mut hints, topo, &pinned, &proj, 12);
         // Last, the faces still flipped or degenerate: vertices into their stars' kernels,
         // discs re-embedded.
-        let fr = fold_repair::repair_folds(&mut fine, &mut hints, topo, &pinned, &proj, 12);
-        tracing::debug!(left, opposed, ?fr, "fold repair");
+        let fr = fold_repair::repair_folds(
+            &mut fine,
+            &mut hints,
+            topo,
+            &pinned,
+            &proj,
+            12,
+            Some(&suspects),
+        );
+        tracing::debug!(suspects = suspects.len(), ?fr, "fold repair");
         let left = fr.flipped_after;
-        flipped_after = Some(fr.flipped_after);
+        flipped_after = fr.flipped_after;
         tracing::debug!(
             relaxed_ms,
             untangled_ms,
@@ -508,10 +524,7 @@ pub fn remesh_with_progress(
     let out = h.finest_mesh();
     let base = h.base.clone();
     progress("quality", 0.0);
-    let quality = match flipped_after {
-        Some(flipped) => quality::measure_with_flipped(&out, flipped),
-        None => quality::measure_near(&out, &proj, &hints),
-    };
+    let quality = quality::measure_with_flipped(&out, flipped_after);
     progress("quality", 1.0);
     timings.total_ms = ms(t_all);
     Ok(Remeshed {

@@ -6,6 +6,17 @@
 //! its normal points against the input surface's normal at the closest input point of its
 //! centroid, *degenerate* when its smallest angle is below [`DEGENERATE_DEGREES`] or its area
 //! vanishes.
+//!
+//! The closest-point reference was checked against the alternatives on the corpus (issue 5,
+//! before the final repair, 5 levels): of the flipped faces, only 1 or 2 per manifold mesh
+//! (bunny 1 of 149, rocker-arm 2 of 140) and 1–2% of the non-manifold ones (cow 14 of 894,
+//! teapot 10 of 1150, beetle 67 of 2813) agree with the input's smoothed normal (the mean
+//! over the input triangles sharing a vertex with the closest one); the closest point lies
+//! more than three rings away from the input triangles the face's vertices sit on (another
+//! sheet) for none of the manifold meshes' faces and 6, 45 and 139 of cow's, teapot's and
+//! beetle's; most flipped faces are folded against their neighbours in the remesh. The
+//! faces counted are folds of the remesh, not artefacts of the measure, which is therefore
+//! kept as it is.
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -56,7 +67,8 @@ pub fn measure(mesh: &Mesh, proj: &Projector) -> Quality {
 }
 
 /// [`measure`] with the number of flipped faces already known (as
-/// [`super::resample::untangle_counts`] finds it): only the angles are measured.
+/// [`super::fold_repair::repair_folds`] counts them, with the same definition): only the
+/// angles are measured.
 pub fn measure_with_flipped(mesh: &Mesh, flipped: usize) -> Quality {
     let pos = &mesh.positions;
     let per_face: Vec<(f64, bool)> = (0..mesh.num_faces())

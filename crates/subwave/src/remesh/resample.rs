@@ -669,6 +669,33 @@ pub fn untangle_counts(
     proj: &Projector,
     rounds: u32,
 ) -> (usize, usize) {
+    let bad = untangle_bad(pos, hints, topo, fixed, proj, rounds);
+    // A face that is not bad is not flipped; only the bad ones need the flip test.
+    let cur: &[DVec3] = pos;
+    let hint: &[u32] = hints;
+    bad.par_iter()
+        .map(|&f| {
+            let fv = topo.face_vertices(f as usize);
+            let n = face_normal(fv, cur);
+            let c = fv.iter().map(|&v| cur[v as usize]).sum::<DVec3>() / fv.len() as f64;
+            let (_, tri) = proj.closest_near(c, &face_hints(fv, hint));
+            let d = n.dot(proj.normals[tri as usize]);
+            (usize::from(d <= 0.0), usize::from(d < 0.0))
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+}
+
+/// [`untangle`], returning the faces left that are flipped (normal at a non-acute angle with
+/// the input's, as [`flipped_faces`]) or have an angle below 2°, in increasing order; every
+/// other face is neither flipped nor degenerate.
+pub fn untangle_bad(
+    pos: &mut [DVec3],
+    hints: &mut [u32],
+    topo: &Topology,
+    fixed: &[bool],
+    proj: &Projector,
+    rounds: u32,
+) -> Vec<u32> {
     const BAD_ANGLE: f64 = 2.0;
     let mut flipped: Vec<bool> = (0..topo.num_faces())
         .into_par_iter()
@@ -750,20 +777,7 @@ pub fn untangle_counts(
         }
         count = flipped.iter().filter(|&&f| f).count();
     }
-    // A face that is not bad is not flipped; only the bad ones need the flip test.
-    let cur: &[DVec3] = pos;
-    let hint: &[u32] = hints;
-    flipped
-        .par_iter()
-        .enumerate()
-        .filter(|&(_, &bad)| bad)
-        .map(|(f, _)| {
-            let fv = topo.face_vertices(f);
-            let n = face_normal(fv, cur);
-            let c = fv.iter().map(|&v| cur[v as usize]).sum::<DVec3>() / fv.len() as f64;
-            let (_, tri) = proj.closest_near(c, &face_hints(fv, hint));
-            let d = n.dot(proj.normals[tri as usize]);
-            (usize::from(d <= 0.0), usize::from(d < 0.0))
-        })
-        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+    (0..flipped.len() as u32)
+        .filter(|&f| flipped[f as usize])
+        .collect()
 }
