@@ -21,7 +21,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::quality::{min_angle, DEGENERATE_DEGREES};
-use super::resample::{face_hints, face_normal, flips_around, Projector};
+use super::resample::{face_hints, face_normal, face_region, flips_around, Projector};
 use crate::topology::Topology;
 
 /// Faces with a smaller angle than this (degrees) are repaired (above
@@ -254,22 +254,12 @@ fn vertex_rounds(
         if bad.is_empty() {
             break;
         }
-        let mut region = vec![false; pos.len()];
-        for &f in &bad {
-            for &v in topo.face_vertices(f as usize) {
-                region[v as usize] = true;
-            }
-        }
-        for _ in 0..round.min(3) {
-            let grown = region.clone();
-            for (v, &r) in grown.iter().enumerate() {
-                if r {
-                    for &e in topo.vertex_edges(v) {
-                        region[topo.other_vertex(e as usize, v as u32) as usize] = true;
-                    }
-                }
-            }
-        }
+        let region = face_region(
+            topo,
+            pos.len(),
+            bad.iter().map(|&f| f as usize),
+            round.min(3) as usize,
+        );
         let mut round_moves = 0;
         let verts: Vec<usize> = (0..pos.len())
             .filter(|&v| region[v] && !fixed[v] && !topo.vertex_edges(v).is_empty())

@@ -685,6 +685,32 @@ pub fn untangle_counts(
         .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
 }
 
+/// Flags of the `nv` vertices of `faces` and of the `rings` rings of vertices around them.
+pub(crate) fn face_region(
+    topo: &Topology,
+    nv: usize,
+    faces: impl IntoIterator<Item = usize>,
+    rings: usize,
+) -> Vec<bool> {
+    let mut region = vec![false; nv];
+    for f in faces {
+        for &v in topo.face_vertices(f) {
+            region[v as usize] = true;
+        }
+    }
+    for _ in 0..rings {
+        let grown = region.clone();
+        for (v, &r) in grown.iter().enumerate() {
+            if r {
+                for &e in topo.vertex_edges(v) {
+                    region[topo.other_vertex(e as usize, v as u32) as usize] = true;
+                }
+            }
+        }
+    }
+    region
+}
+
 /// [`untangle`], returning the faces left that are flipped (normal at a non-acute angle with
 /// the input's, as [`flipped_faces`]) or have an angle below 2°, in increasing order; every
 /// other face is neither flipped nor degenerate.
@@ -706,24 +732,8 @@ pub fn untangle_bad(
         if count == 0 {
             break;
         }
-        let mut region = vec![false; pos.len()];
-        for (f, &flip) in flipped.iter().enumerate() {
-            if flip {
-                for &v in topo.face_vertices(f) {
-                    region[v as usize] = true;
-                }
-            }
-        }
-        for _ in 1..radius.min(3) {
-            let grown = region.clone();
-            for (v, &r) in grown.iter().enumerate() {
-                if r {
-                    for &e in topo.vertex_edges(v) {
-                        region[topo.other_vertex(e as usize, v as u32) as usize] = true;
-                    }
-                }
-            }
-        }
+        let seeds = flipped.iter().enumerate().filter(|x| *x.1).map(|x| x.0);
+        let region = face_region(topo, pos.len(), seeds, radius.min(3) as usize - 1);
         for v in 0..pos.len() {
             if !region[v] || fixed[v] {
                 continue;
