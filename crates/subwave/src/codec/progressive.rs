@@ -197,7 +197,8 @@ pub struct EncodeOptions {
     pub input_vertices: Option<u32>,
     /// Lossy: code the fewest bit planes (at most [`EncodeOptions::bits`]) whose full
     /// decode reconstructs the finest positions within this RMS error (model units, over
-    /// the vertices; bisection over the planes, each candidate quantized and synthesised as the decoder would). Bits beyond it buy nothing when the hierarchy
+    /// the vertices; found by bisection over the plane count, each candidate quantized and
+    /// synthesised as the decoder would). Bits beyond it buy nothing when the hierarchy
     /// itself is only that close to the surface it stands for (a remesh): `None` (the
     /// default) codes all `bits` planes. Ignored in lossless mode.
     pub max_rms: Option<f64>,
