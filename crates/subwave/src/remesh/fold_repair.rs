@@ -84,6 +84,19 @@ fn refresh(
         .collect();
     faces.sort_unstable();
     faces.dedup();
+    measure(state, &faces, topo, pos, hints, proj);
+    last.copy_from_slice(pos);
+}
+
+/// Measures `faces` (distinct) into `state`.
+fn measure(
+    state: &mut [FaceState],
+    faces: &[u32],
+    topo: &Topology,
+    pos: &[DVec3],
+    hints: &[u32],
+    proj: &Projector,
+) {
     let updates: Vec<FaceState> = faces
         .par_iter()
         .map(|&f| face_state(topo.face_vertices(f as usize), pos, hints, proj))
@@ -91,7 +104,6 @@ fn refresh(
     for (&f, u) in faces.iter().zip(updates) {
         state[f as usize] = u;
     }
-    last.copy_from_slice(pos);
 }
 
 /// The bad faces of `state` (as [`bad_face`] with [`BAD_ANGLE`]).
@@ -138,13 +150,7 @@ pub fn repair_folds(
             .collect(),
         Some(faces) => {
             let mut state = vec![(1.0, 60.0, false); topo.num_faces()];
-            let measured: Vec<FaceState> = faces
-                .par_iter()
-                .map(|&f| face_state(topo.face_vertices(f as usize), pos, hints, proj))
-                .collect();
-            for (&f, m) in faces.iter().zip(measured) {
-                state[f as usize] = m;
-            }
+            measure(&mut state, faces, topo, pos, hints, proj);
             state
         }
     };
