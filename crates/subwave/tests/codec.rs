@@ -362,27 +362,34 @@ fn golden_stream() -> Vec<u8> {
 
 const GOLDEN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/bumpy2.swv");
 
+/// Writes `s` to `path` under `SUBWAVE_BLESS`, then checks that the golden file at `path`
+/// has the current format version and equals `s`; returns the golden bytes. `what` names
+/// the stream kind in the messages ("" or "lossless ").
+fn check_golden(s: &[u8], path: &str, what: &str) -> Vec<u8> {
+    if std::env::var_os("SUBWAVE_BLESS").is_some() {
+        std::fs::write(path, s).unwrap();
+    }
+    let golden = std::fs::read(path).expect(path);
+    assert_eq!(
+        u16::from_le_bytes([golden[4], golden[5]]),
+        subwave::codec::container::VERSION,
+        "the golden {what}stream has another version: regenerate it (see the test's doc)"
+    );
+    assert!(
+        s == golden.as_slice(),
+        "the {what}encoder's output changed ({} bytes, golden {})",
+        s.len(),
+        golden.len()
+    );
+    golden
+}
+
 /// The stream format is pinned: a change of the encoder's output (or of the format) fails
 /// here. If the change is intended, bump `container::VERSION` when the format changed, and
 /// regenerate the file with `SUBWAVE_BLESS=1 cargo test -p subwave --test codec golden`.
 #[test]
 fn golden_bytes_of_a_small_reference_stream() {
-    let s = golden_stream();
-    if std::env::var_os("SUBWAVE_BLESS").is_some() {
-        std::fs::write(GOLDEN, &s).unwrap();
-    }
-    let golden = std::fs::read(GOLDEN).expect("tests/golden/bumpy2.swv");
-    assert_eq!(
-        u16::from_le_bytes([golden[4], golden[5]]),
-        subwave::codec::container::VERSION,
-        "the golden stream has another version: regenerate it (see the test's doc)"
-    );
-    assert!(
-        s == golden,
-        "the encoder's output changed ({} bytes, golden {})",
-        s.len(),
-        golden.len()
-    );
+    let golden = check_golden(&golden_stream(), GOLDEN, "");
     let d = full(&golden);
     assert!(d.complete);
     let (_, hs) = encode_with_info(&bumpy(2), &EncodeOptions::default()).unwrap();
@@ -606,22 +613,7 @@ const GOLDEN_LOSSLESS: &str = concat!(
 /// (regenerate with `SUBWAVE_BLESS=1 cargo test -p subwave --test codec golden`).
 #[test]
 fn golden_bytes_of_a_small_lossless_stream() {
-    let s = golden_lossless_stream();
-    if std::env::var_os("SUBWAVE_BLESS").is_some() {
-        std::fs::write(GOLDEN_LOSSLESS, &s).unwrap();
-    }
-    let golden = std::fs::read(GOLDEN_LOSSLESS).expect("tests/golden/bumpy2_lossless.swv");
-    assert_eq!(
-        u16::from_le_bytes([golden[4], golden[5]]),
-        subwave::codec::container::VERSION,
-        "the golden lossless stream has another version: regenerate it"
-    );
-    assert!(
-        s == golden,
-        "the lossless encoder's output changed ({} bytes, golden {})",
-        s.len(),
-        golden.len()
-    );
+    let golden = check_golden(&golden_lossless_stream(), GOLDEN_LOSSLESS, "lossless ");
     let d = full(&golden);
     assert!(d.complete);
     let (_, hs) = encode_with_info(
