@@ -20,6 +20,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::flatten::{flat_reembed, Patch};
 use super::quality::{min_angle, DEGENERATE_DEGREES};
 use super::resample::{face_hints, face_normal, face_region, flips_around, Projector};
 use crate::topology::Topology;
@@ -328,6 +329,14 @@ fn vertex_rounds(
     bad
 }
 
+/// Rings around a group of bad faces at most for the membrane of [`reembed`].
+const MEMBRANE_RINGS: usize = 6;
+
+/// The rings around a group of bad faces tried by [`reembed`]; the flat re-embedding tries
+/// them all (folds collapsed onto a sharp input edge reach farther than a membrane can
+/// follow).
+const RINGS: &[usize] = &[1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16];
+
 /// Sweeps of the membrane solve in [`reembed`].
 const MEMBRANE_SWEEPS: usize = 60;
 
@@ -401,8 +410,8 @@ fn reembed(
             continue;
         }
         let mut repaired = false;
-        for k in 1..=6 {
-            // The disc: the group's vertices grown by k rings.
+        // The disc: the group's vertices grown by k rings.
+        let mut grow = |k: usize| {
             let mut verts: Vec<u32> = faces
                 .iter()
                 .flat_map(|&f| topo.face_vertices(f as usize).iter().copied())
@@ -425,14 +434,21 @@ fn reembed(
                 }
                 verts = next;
             }
+            for &v in &verts {
+                in_region[v as usize] = false;
+            }
+            verts
+        };
+        // The input under the largest disc, flattened once for every disc.
+        let widest = RINGS.last().map_or(0, |&k| k + 1);
+        let patch = Patch::under(pos, hints, &grow(widest), proj);
+        for &k in RINGS {
+            let verts = grow(k);
             let free: Vec<u32> = verts
                 .iter()
                 .copied()
                 .filter(|&v| !fixed[v as usize] && !topo.vertex_edges(v as usize).is_empty())
                 .collect();
-            for &v in &verts {
-                in_region[v as usize] = false;
-            }
             if free.is_empty() {
                 continue;
             }
@@ -458,60 +474,94 @@ fn reembed(
                 }
                 (nbad, dev, len / disc_faces.len().max(1) as f64)
             };
-            let before = score(pos, hints);
+            // The disc's score as it is (the flat re-embedding needs it only if it succeeds).
+            let mut before = (k <= MEMBRANE_RINGS).then(|| score(pos, hints));
             let saved: Vec<(DVec3, u32)> = free
                 .iter()
                 .map(|&v| (pos[v as usize], hints[v as usize]))
                 .collect();
-            for _ in 0..MEMBRANE_SWEEPS {
+            if let Some(before) = before {
+                for _ in 0..MEMBRANE_SWEEPS {
+                    for &v in &free {
+                        let edges = topo.vertex_edges(v as usize);
+                        let c = edges
+                            .iter()
+                            .map(|&e| pos[topo.other_vertex(e as usize, v) as usize])
+                            .sum::<DVec3>()
+                            / edges.len() as f64;
+                        pos[v as usize] = c;
+                    }
+                }
+                // Lift along the disc's normal onto the input (the membrane is a height field over
+                // the tangent plane; a closest point would pull it onto creases).
+                let normal = free
+                    .iter()
+                    .map(|&v| proj.smooth_normal(saved_hint(&free, &saved, v)))
+                    .sum::<DVec3>()
+                    .normalize_or_zero();
+                let reach = 2.0 * before.2;
                 for &v in &free {
-                    let edges = topo.vertex_edges(v as usize);
-                    let c = edges
-                        .iter()
-                        .map(|&e| pos[topo.other_vertex(e as usize, v) as usize])
-                        .sum::<DVec3>()
-                        / edges.len() as f64;
-                    pos[v as usize] = c;
+                    let p = pos[v as usize];
+                    let up = proj.cast_ray(p, normal, reach);
+                    let down = proj.cast_ray(p, -normal, reach);
+                    let hit = match (up, down) {
+                        (Some(a), Some(b)) => Some(if a.0 <= b.0 {
+                            (p + normal * a.0, a.1)
+                        } else {
+                            (p - normal * b.0, b.1)
+                        }),
+                        (Some(a), None) => Some((p + normal * a.0, a.1)),
+                        (None, Some(b)) => Some((p - normal * b.0, b.1)),
+                        (None, None) => None,
+                    };
+                    let (q, t) = match hit {
+                        Some(h) if normal != DVec3::ZERO => h,
+                        _ => project(proj, p, hints[v as usize]),
+                    };
+                    pos[v as usize] = q;
+                    hints[v as usize] = t;
+                }
+                let after = score(pos, hints);
+                if after.0 < before.0 && after.1 <= before.1.max(0.05 * before.2) {
+                    moved += free.len();
+                    repaired = true;
+                    break;
+                }
+                for (&v, &(p, t)) in free.iter().zip(&saved) {
+                    pos[v as usize] = p;
+                    hints[v as usize] = t;
                 }
             }
-            // Lift along the disc's normal onto the input (the membrane is a height field over
-            // the tangent plane; a closest point would pull it onto creases).
-            let normal = free
-                .iter()
-                .map(|&v| proj.smooth_normal(saved_hint(&free, &saved, v)))
-                .sum::<DVec3>()
-                .normalize_or_zero();
-            let reach = 2.0 * before.2;
-            for &v in &free {
-                let p = pos[v as usize];
-                let up = proj.cast_ray(p, normal, reach);
-                let down = proj.cast_ray(p, -normal, reach);
-                let hit = match (up, down) {
-                    (Some(a), Some(b)) => Some(if a.0 <= b.0 {
-                        (p + normal * a.0, a.1)
-                    } else {
-                        (p - normal * b.0, b.1)
-                    }),
-                    (Some(a), None) => Some((p + normal * a.0, a.1)),
-                    (None, Some(b)) => Some((p - normal * b.0, b.1)),
-                    (None, None) => None,
-                };
-                let (q, t) = match hit {
-                    Some(h) if normal != DVec3::ZERO => h,
-                    _ => project(proj, p, hints[v as usize]),
-                };
-                pos[v as usize] = q;
-                hints[v as usize] = t;
-            }
-            let after = score(pos, hints);
-            if after.0 < before.0 && after.1 <= before.1.max(0.05 * before.2) {
-                moved += free.len();
-                repaired = true;
-                break;
-            }
-            for (&v, &(p, t)) in free.iter().zip(&saved) {
-                pos[v as usize] = p;
-                hints[v as usize] = t;
+            // Where the input bends within the disc, a membrane lifted along one normal
+            // cannot open the fold: Tutte's embedding in a flattening of the input can.
+            let tf = std::time::Instant::now();
+            let fr = patch
+                .as_ref()
+                .and_then(|pt| flat_reembed(pt, pos, hints, topo, &free, &disc_faces, proj));
+            tracing::trace!(
+                k,
+                free = free.len(),
+                ok = fr.is_some(),
+                ms = tf.elapsed().as_secs_f64() * 1e3,
+                "flat attempt"
+            );
+            if let Some(moves) = fr {
+                let before = *before.get_or_insert_with(|| score(pos, hints));
+                for (&v, &(p, t)) in free.iter().zip(&moves) {
+                    pos[v as usize] = p;
+                    hints[v as usize] = t;
+                }
+                let after = score(pos, hints);
+                tracing::trace!(k, before = ?before, after = ?after, "flat result");
+                if after.0 < before.0 && after.1 <= before.1.max(0.05 * before.2) {
+                    moved += free.len();
+                    repaired = true;
+                    break;
+                }
+                for (&v, &(p, t)) in free.iter().zip(&saved) {
+                    pos[v as usize] = p;
+                    hints[v as usize] = t;
+                }
             }
         }
         if !repaired {

@@ -16,8 +16,9 @@
 //!    for well-shaped triangles; boundary and feature base edges keep their vertices on the
 //!    input's boundary curves and creases;
 //!    then [`fold_repair`] moves the vertices of faces still flipped against the input or
-//!    degenerate into the kernels of their stars (re-embedding small discs where single moves
-//!    do not suffice), positions only;
+//!    degenerate into the kernels of their stars (re-embedding discs where single moves
+//!    do not suffice: as a membrane, or by Tutte's embedding in a flattening of the input
+//!    under them, `flatten`), positions only;
 //! 5. [`shrinkwrap`]: the fallback (Kobbelt et al. 1999, as Bertram §5.3) for genus-0
 //!    inputs when the parameterization fails;
 //! 6. [`quality`]: angles, flipped and degenerate faces.
@@ -27,6 +28,7 @@
 //! Maret eq. 5.7), so [`crate::hierarchy::Hierarchy::detect`] accepts it and the wavelet
 //! transforms take it directly; [`Remeshed::hierarchy`] is that hierarchy.
 
+mod flatten;
 pub mod fold_repair;
 pub mod normal;
 pub mod param;

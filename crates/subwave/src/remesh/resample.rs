@@ -227,6 +227,26 @@ impl Projector {
             .map(|(t, (d2, q))| (q, d2, t))
     }
 
+    /// The corners of input triangle `t` (panics if `t` is out of range).
+    pub(crate) fn triangle(&self, t: u32) -> [u32; 3] {
+        self.tris[t as usize]
+    }
+
+    /// The position of input vertex `v` (panics if `v` is out of range).
+    pub(crate) fn vertex(&self, v: u32) -> DVec3 {
+        self.pos[v as usize]
+    }
+
+    /// The input triangles around input vertex `v` (panics if `v` is out of range).
+    pub(crate) fn fan(&self, v: u32) -> &[u32] {
+        &self.fan[self.fan_start[v as usize] as usize..self.fan_start[v as usize + 1] as usize]
+    }
+
+    /// The number of input triangles.
+    pub(crate) fn num_triangles(&self) -> usize {
+        self.tris.len()
+    }
+
     /// The closest input point to `p` and its triangle.
     pub fn closest(&self, p: DVec3) -> (DVec3, u32) {
         let (proj, (tri, _)) = self.shape.project_local_point_and_get_location(
