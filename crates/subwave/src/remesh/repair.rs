@@ -3,7 +3,7 @@
 //!
 //! Maret 2003 §2.3 (Algorithm 4) defines the 2-manifold the subdivision and wavelet layers
 //! need: every edge on one or two consistently oriented faces, the faces around every vertex
-//! one fan. A remesher (Lee et al. 1998, MAPS §2) starts from such a mesh. [`repair`] makes one
+//! one fan. A remesher (Lee et al. 1998, MAPS §2) starts from such a mesh. [`prepare`] with `repair` set makes one
 //! by *cutting*: faces are glued to each other only across edges that are on exactly two
 //! faces, after orienting each glued component consistently (breadth-first, flipping faces
 //! as Maret §2.3.1's orientation test requires); every vertex is then split into one copy per

@@ -4,7 +4,7 @@
 //! position time, the total, the re-evaluation time with cached stencils (Maret §5.1.1) and the
 //! peak memory, each a median of several runs, without file output. Topology and positions
 //! overlap in [`subdivide`] (they run in parallel), so they are timed here apart:
-//! - *topology*: [`prepare`] and, per level, the child tables ([`refine::refine_topology`]) and
+//! - *topology*: `prepare` and, per level, the child tables ([`refine::refine_topology`]) and
 //!   sharpness, the finest level's faces and tags;
 //! - *positions*: per level, the child positions from the prepared topologies
 //!   ([`stencil::level_apply`]);

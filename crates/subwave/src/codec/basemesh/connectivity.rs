@@ -26,7 +26,7 @@
 //! valence; the same for the gate's other end (`b ≥ 1`). Face degrees are coded in the context
 //! of the previous degree (Face Fixer's degree coding), and skipped for triangle meshes.
 //!
-//! Encoder and decoder share the border data structure ([`Border::apply`]) and the symbol
+//! Encoder and decoder share the border data structure (`Border::apply`) and the symbol
 //! flow (`code_face`, generic over the direction), so they cannot diverge.
 
 use crate::codec::rangecoder::{Bit, Decoder, Encoder, UInt};
