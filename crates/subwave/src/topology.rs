@@ -283,12 +283,14 @@ impl Topology {
         topo
     }
 
-    /// Offsets of a counting sort of items by key (`n` keys), from a pass calling the given
-    /// closure's argument once per item: `offsets[k + 1]` is the start of key `k` (offsets has
-    /// `n + 2` entries), ready for [`Topology::counting_slot`].
-    fn counting_offsets(n: usize, count: impl FnOnce(&mut dyn FnMut(u32))) -> Vec<u32> {
+    /// Offsets of a counting sort of items by key (`n` keys), from the items' keys:
+    /// `offsets[k + 1]` is the start of key `k` (offsets has `n + 2` entries), ready for
+    /// [`Topology::counting_slot`].
+    fn counting_offsets(n: usize, keys: impl Iterator<Item = u32>) -> Vec<u32> {
         let mut off = vec![0u32; n + 2];
-        count(&mut |k| off[k as usize + 2] += 1);
+        for k in keys {
+            off[k as usize + 2] += 1;
+        }
         for i in 2..n + 2 {
             off[i] += off[i - 1];
         }
@@ -306,7 +308,7 @@ impl Topology {
 
     /// Edge -> faces, in face order (a stable counting sort of the corners by edge).
     fn edge_face_table(ne: usize, fo: &[u32], face_edges: &[u32]) -> (Vec<u32>, Vec<u32>) {
-        let mut off = Self::counting_offsets(ne, |add| face_edges.iter().for_each(|&e| add(e)));
+        let mut off = Self::counting_offsets(ne, face_edges.iter().copied());
         let mut edge_faces = vec![0u32; face_edges.len()];
         for (f, w) in fo.windows(2).enumerate() {
             for &e in &face_edges[w[0] as usize..w[1] as usize] {
@@ -319,7 +321,7 @@ impl Topology {
 
     /// Vertex -> faces and corners, in face order (scan order).
     fn vertex_face_table(nv: usize, fo: &[u32], fvs: &[u32]) -> (Vec<u32>, Vec<u32>, Vec<u16>) {
-        let mut off = Self::counting_offsets(nv, |add| fvs.iter().for_each(|&v| add(v)));
+        let mut off = Self::counting_offsets(nv, fvs.iter().copied());
         let mut vertex_faces = vec![0u32; fvs.len()];
         let mut vertex_face_corners = vec![0u16; fvs.len()];
         for (f, w) in fo.windows(2).enumerate() {
@@ -335,9 +337,7 @@ impl Topology {
 
     /// Vertex -> edges, in edge order (scan order).
     fn vertex_edge_table(nv: usize, edge_vertices: &[[u32; 2]]) -> (Vec<u32>, Vec<u32>) {
-        let mut off = Self::counting_offsets(nv, |add| {
-            edge_vertices.iter().flatten().for_each(|&v| add(v))
-        });
+        let mut off = Self::counting_offsets(nv, edge_vertices.iter().flatten().copied());
         let mut vertex_edges = vec![0u32; 2 * edge_vertices.len()];
         for (e, ev) in edge_vertices.iter().enumerate() {
             for &v in ev {

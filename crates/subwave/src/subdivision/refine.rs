@@ -179,6 +179,243 @@ pub fn child_faces(parent: &Topology, split: Split) -> (Vec<u32>, Vec<u32>) {
 /// [`crate::validate::require_manifold`] at level 0; splitting preserves it), and for
 /// [`Split::Triangles`] every face is a triangle, for [`Split::QuadTri`] a triangle or a quad.
 pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
+    if split == Split::QuadTri {
+        return child_edges_sequential(parent, split);
+    }
+    child_edges_parallel(parent, split)
+}
+
+/// A parent face's child edges in creation order (the order of first appearance in the child
+/// face list), for [`child_edges_parallel`]: `Half(i, k)` is the half of the face's edge `i` at
+/// its corner `k`, created here if the face is the edge's first face; `Interior` a new edge.
+#[derive(Clone, Copy)]
+enum Step {
+    Half(usize, usize, [u32; 2]),
+    Interior([u32; 2]),
+}
+
+/// The child-face corners of parent face `f` that hold a half of one of its edges: for each,
+/// the corner index (relative to the face's first child corner), the edge's local index and
+/// the local index of the end.
+fn half_slots(n: usize, split: Split) -> impl Iterator<Item = (usize, usize, usize)> {
+    let tri: &[(usize, usize, usize)] = &[
+        (0, 0, 0),
+        (2, 2, 0),
+        (3, 1, 1),
+        (5, 0, 1),
+        (6, 2, 2),
+        (8, 1, 2),
+    ];
+    let tri = if split == Split::Triangles { tri } else { &[] };
+    let poly = (0..if split == Split::Triangles { 0 } else { n }).flat_map(move |i| {
+        let ip = if i == 0 { n - 1 } else { i - 1 };
+        [(4 * i, i, i), (4 * i + 3, ip, i)]
+    });
+    tri.iter().copied().chain(poly)
+}
+
+/// [`child_edges`] of a triangle or polygon split, in parallel over chunks of parent faces:
+/// the edges a face creates are those of its child faces that are interior to it, and the
+/// halves of the parent edges whose first face it is (an edge's halves first appear there), so
+/// each chunk's first child edge follows from counts, and the halves created elsewhere are
+/// filled in once every chunk has numbered its own.
+fn child_edges_parallel(parent: &Topology, split: Split) -> ChildEdges {
+    use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
+    let (face_offsets, face_vertices) = child_faces(parent, split);
+    let nv = parent.num_vertices;
+    let ne = parent.num_edges();
+    let nf = parent.num_faces();
+    let first_face = |e: u32| parent.edge_faces[parent.edge_face_offsets[e as usize] as usize];
+    // Corners of the child faces of faces `lo..hi`.
+    let child_corners = |lo: usize, hi: usize| match split {
+        Split::Triangles => 12 * lo..12 * hi,
+        _ => 4 * parent.face_offsets[lo] as usize..4 * parent.face_offsets[hi] as usize,
+    };
+    // The creation order of face `f`'s child edges (see `child_edges_sequential`).
+    let steps = |f: usize, out: &mut Vec<Step>| {
+        out.clear();
+        let v = parent.face_vertices(f);
+        let e = parent.face_edges(f);
+        if split == Split::Triangles {
+            let m = [nv + e[0], nv + e[1], nv + e[2]];
+            out.extend_from_slice(&[
+                Step::Half(0, 0, [v[0], m[0]]),
+                Step::Interior([m[0], m[2]]),
+                Step::Half(2, 0, [m[2], v[0]]),
+                Step::Half(1, 1, [v[1], m[1]]),
+                Step::Interior([m[1], m[0]]),
+                Step::Half(0, 1, [m[0], v[1]]),
+                Step::Half(2, 2, [v[2], m[2]]),
+                Step::Interior([m[2], m[1]]),
+                Step::Half(1, 2, [m[1], v[2]]),
+            ]);
+        } else {
+            let n = v.len();
+            let cpt = nv + ne as u32 + f as u32;
+            for i in 0..n {
+                let ip = if i == 0 { n - 1 } else { i - 1 };
+                let (mi, mp) = (nv + e[i], nv + e[ip]);
+                out.push(Step::Half(i, i, [v[i], mi]));
+                if i < n - 1 {
+                    out.push(Step::Interior([mi, cpt]));
+                }
+                if i == 0 {
+                    out.push(Step::Interior([cpt, mp]));
+                }
+                out.push(Step::Half(ip, i, [mp, v[i]]));
+            }
+        }
+    };
+    let chunks: Vec<(usize, usize)> = (0..nf)
+        .step_by(FACE_CHUNK)
+        .map(|lo| (lo, (lo + FACE_CHUNK).min(nf)))
+        .collect();
+    // Pass 1: the number of edges each chunk creates.
+    let counts: Vec<u32> = chunks
+        .par_iter()
+        .map(|&(lo, hi)| {
+            let mut c = 0u32;
+            for f in lo..hi {
+                let e = parent.face_edges(f);
+                c += e.len() as u32;
+                c += 2 * e.iter().filter(|&&x| first_face(x) as usize == f).count() as u32;
+            }
+            c
+        })
+        .collect();
+    let mut starts = Vec::with_capacity(chunks.len() + 1);
+    starts.push(0u32);
+    for c in &counts {
+        starts.push(starts[starts.len() - 1] + c);
+    }
+    let total = starts[chunks.len()] as usize;
+    let mut face_edges = vec![u32::MAX; face_vertices.len()];
+    let mut edge_vertices = vec![[0u32; 2]; total];
+    let halves: Vec<[AtomicU32; 2]> = (0..ne)
+        .map(|_| [AtomicU32::new(u32::MAX), AtomicU32::new(u32::MAX)])
+        .collect();
+    // Split the outputs at the chunks.
+    let mut parts = Vec::with_capacity(chunks.len());
+    {
+        let (mut fe_rest, mut ev_rest) = (face_edges.as_mut_slice(), edge_vertices.as_mut_slice());
+        for (c, &(lo, hi)) in chunks.iter().enumerate() {
+            let (fe, fr) = fe_rest.split_at_mut(child_corners(lo, hi).len());
+            let (ev, er) = ev_rest.split_at_mut(counts[c] as usize);
+            parts.push((lo, hi, starts[c], fe, ev));
+            (fe_rest, ev_rest) = (fr, er);
+        }
+    }
+    // Pass 2: each chunk numbers its edges, leaving the halves created elsewhere unset.
+    parts.par_iter_mut().for_each(|(lo, hi, start, fe, ev)| {
+        let mut next = *start;
+        let mut order = Vec::new();
+        let base = child_corners(*lo, *lo).start;
+        for f in *lo..*hi {
+            steps(f, &mut order);
+            let v = parent.face_vertices(f);
+            let e = parent.face_edges(f);
+            let mut ids = [0u32; 64];
+            let mut ids_vec = Vec::new();
+            let id_buf: &mut [u32] = if order.len() <= 64 {
+                &mut ids[..order.len()]
+            } else {
+                ids_vec.resize(order.len(), 0);
+                &mut ids_vec
+            };
+            for (k, step) in order.iter().enumerate() {
+                id_buf[k] = match *step {
+                    Step::Half(i, c, dir) => {
+                        if first_face(e[i]) as usize != f {
+                            u32::MAX
+                        } else {
+                            let end = usize::from(parent.edge_vertices[e[i] as usize][0] != v[c]);
+                            let h = &halves[e[i] as usize][end];
+                            let id = next;
+                            next += 1;
+                            ev[(id - *start) as usize] = dir;
+                            h.store(id, Relaxed);
+                            id
+                        }
+                    }
+                    Step::Interior(dir) => {
+                        let id = next;
+                        next += 1;
+                        ev[(id - *start) as usize] = dir;
+                        id
+                    }
+                };
+            }
+            let c = child_corners(f, f + 1);
+            let out = &mut fe[c.start - base..c.end - base];
+            if split == Split::Triangles {
+                // Creation order: h00 ia h20 h11 ib h01 h22 ic h12.
+                let [h00, ia, h20, h11, ib, h01, h22, ic, h12] = [
+                    id_buf[0], id_buf[1], id_buf[2], id_buf[3], id_buf[4], id_buf[5], id_buf[6],
+                    id_buf[7], id_buf[8],
+                ];
+                out.copy_from_slice(&[h00, ia, h20, h11, ib, h01, h22, ic, h12, ib, ic, ia]);
+            } else {
+                let n = v.len();
+                let mut k = 0;
+                let mut first_interior = 0u32;
+                let mut prev_interior = 0u32;
+                for i in 0..n {
+                    let h_out = id_buf[k];
+                    k += 1;
+                    let int_i = if i < n - 1 {
+                        k += 1;
+                        id_buf[k - 1]
+                    } else {
+                        first_interior
+                    };
+                    let int_p = if i == 0 {
+                        k += 1;
+                        first_interior = id_buf[k - 1];
+                        first_interior
+                    } else {
+                        prev_interior
+                    };
+                    let h_in = id_buf[k];
+                    k += 1;
+                    out[4 * i..4 * i + 4].copy_from_slice(&[h_out, int_i, int_p, h_in]);
+                    prev_interior = int_i;
+                }
+            }
+        }
+        debug_assert_eq!(next - *start, ev.len() as u32);
+    });
+    // Pass 3: the halves created by other faces.
+    parts.par_iter_mut().for_each(|(lo, hi, _, fe, _)| {
+        let base = child_corners(*lo, *lo).start;
+        for f in *lo..*hi {
+            let v = parent.face_vertices(f);
+            let e = parent.face_edges(f);
+            let c0 = child_corners(f, f + 1).start - base;
+            for (slot, i, c) in half_slots(v.len(), split) {
+                let x = &mut fe[c0 + slot];
+                if *x == u32::MAX {
+                    let end = usize::from(parent.edge_vertices[e[i] as usize][0] != v[c]);
+                    *x = halves[e[i] as usize][end].load(Relaxed);
+                }
+            }
+        }
+    });
+    drop(parts);
+    let edge_halves = halves
+        .into_iter()
+        .map(|[a, b]| [a.into_inner(), b.into_inner()])
+        .collect();
+    ChildEdges {
+        face_offsets,
+        face_vertices,
+        face_edges,
+        edge_vertices,
+        edge_halves,
+    }
+}
+
+/// [`child_edges`] in one scan of the parent faces.
+fn child_edges_sequential(parent: &Topology, split: Split) -> ChildEdges {
     let (face_offsets, face_vertices) = child_faces(parent, split);
     let nv = parent.num_vertices;
     let ne = parent.num_edges();
