@@ -212,7 +212,42 @@ impl Topology {
         edge_vertices: Vec<[u32; 2]>,
         order_rings: bool,
     ) -> Self {
+        Self::from_edges_counted(
+            nv,
+            face_offsets,
+            face_vertices,
+            face_edges,
+            edge_vertices,
+            order_rings,
+            None,
+        )
+    }
+
+    /// [`Topology::from_edges`] with the offsets of the three relations known in advance
+    /// (a refiner derives them from the parent level), skipping their counting passes:
+    /// `offsets` are the vertex-face, vertex-edge and edge-face offsets, each as a leading 0
+    /// followed by the `n + 1` offsets (the layout of [`Topology::counting_offsets`]). The
+    /// tables are those of [`Topology::from_edges`] when the offsets are right.
+    pub(crate) fn from_edges_counted(
+        nv: usize,
+        face_offsets: Vec<u32>,
+        face_vertices: Vec<u32>,
+        face_edges: Vec<u32>,
+        edge_vertices: Vec<[u32; 2]>,
+        order_rings: bool,
+        offsets: Option<[Vec<u32>; 3]>,
+    ) -> Self {
         let ne = edge_vertices.len();
+        // Offsets whose sizes or totals disagree with the tables are counted instead.
+        let fits = |o: &Vec<u32>, n: usize, total: usize| {
+            o.len() == n + 2 && o.last().is_some_and(|&t| t as usize == total)
+        };
+        let offsets = offsets.filter(|[vf, ve, ef]| {
+            fits(vf, nv, face_vertices.len())
+                && fits(ve, nv, 2 * ne)
+                && fits(ef, ne, face_edges.len())
+        });
+        let [vf, ve, ef] = offsets.map_or([None, None, None], |o| o.map(Some));
         // The three relations are independent counting sorts: build them in parallel.
         let (
             (edge_face_offsets, edge_faces),
@@ -221,11 +256,11 @@ impl Topology {
                 (vertex_edge_offsets, vertex_edges),
             ),
         ) = rayon::join(
-            || Self::edge_face_table(ne, &face_offsets, &face_edges),
+            || Self::edge_face_table(ne, &face_offsets, &face_edges, ef),
             || {
                 rayon::join(
-                    || Self::vertex_face_table(nv, &face_offsets, &face_vertices),
-                    || Self::vertex_edge_table(nv, &edge_vertices),
+                    || Self::vertex_face_table(nv, &face_offsets, &face_vertices, vf),
+                    || Self::vertex_edge_table(nv, &edge_vertices, ve),
                 )
             },
         );
@@ -283,12 +318,14 @@ impl Topology {
         topo
     }
 
-    /// Offsets of a counting sort of items by key (`n` keys), from a pass calling the given
-    /// closure's argument once per item: `offsets[k + 1]` is the start of key `k` (offsets has
-    /// `n + 2` entries), ready for [`Topology::counting_slot`].
-    fn counting_offsets(n: usize, count: impl FnOnce(&mut dyn FnMut(u32))) -> Vec<u32> {
+    /// Offsets of a counting sort of items by key (`n` keys), from the items' keys:
+    /// `offsets[k + 1]` is the start of key `k` (offsets has `n + 2` entries), ready for
+    /// [`Topology::counting_slot`].
+    fn counting_offsets(n: usize, keys: impl Iterator<Item = u32>) -> Vec<u32> {
         let mut off = vec![0u32; n + 2];
-        count(&mut |k| off[k as usize + 2] += 1);
+        for k in keys {
+            off[k as usize + 2] += 1;
+        }
         for i in 2..n + 2 {
             off[i] += off[i - 1];
         }
@@ -305,8 +342,16 @@ impl Topology {
     }
 
     /// Edge -> faces, in face order (a stable counting sort of the corners by edge).
-    fn edge_face_table(ne: usize, fo: &[u32], face_edges: &[u32]) -> (Vec<u32>, Vec<u32>) {
-        let mut off = Self::counting_offsets(ne, |add| face_edges.iter().for_each(|&e| add(e)));
+    fn edge_face_table(
+        ne: usize,
+        fo: &[u32],
+        face_edges: &[u32],
+        known: Option<Vec<u32>>,
+    ) -> (Vec<u32>, Vec<u32>) {
+        let mut off = match known {
+            Some(k) => k,
+            None => Self::counting_offsets(ne, face_edges.iter().copied()),
+        };
         let mut edge_faces = vec![0u32; face_edges.len()];
         for (f, w) in fo.windows(2).enumerate() {
             for &e in &face_edges[w[0] as usize..w[1] as usize] {
@@ -314,12 +359,21 @@ impl Topology {
             }
         }
         off.pop();
+        debug_assert_eq!(off.last().map_or(0, |&x| x as usize), edge_faces.len());
         (off, edge_faces)
     }
 
     /// Vertex -> faces and corners, in face order (scan order).
-    fn vertex_face_table(nv: usize, fo: &[u32], fvs: &[u32]) -> (Vec<u32>, Vec<u32>, Vec<u16>) {
-        let mut off = Self::counting_offsets(nv, |add| fvs.iter().for_each(|&v| add(v)));
+    fn vertex_face_table(
+        nv: usize,
+        fo: &[u32],
+        fvs: &[u32],
+        known: Option<Vec<u32>>,
+    ) -> (Vec<u32>, Vec<u32>, Vec<u16>) {
+        let mut off = match known {
+            Some(k) => k,
+            None => Self::counting_offsets(nv, fvs.iter().copied()),
+        };
         let mut vertex_faces = vec![0u32; fvs.len()];
         let mut vertex_face_corners = vec![0u16; fvs.len()];
         for (f, w) in fo.windows(2).enumerate() {
@@ -330,14 +384,20 @@ impl Topology {
             }
         }
         off.pop();
+        debug_assert_eq!(off.last().map_or(0, |&x| x as usize), vertex_faces.len());
         (off, vertex_faces, vertex_face_corners)
     }
 
     /// Vertex -> edges, in edge order (scan order).
-    fn vertex_edge_table(nv: usize, edge_vertices: &[[u32; 2]]) -> (Vec<u32>, Vec<u32>) {
-        let mut off = Self::counting_offsets(nv, |add| {
-            edge_vertices.iter().flatten().for_each(|&v| add(v))
-        });
+    fn vertex_edge_table(
+        nv: usize,
+        edge_vertices: &[[u32; 2]],
+        known: Option<Vec<u32>>,
+    ) -> (Vec<u32>, Vec<u32>) {
+        let mut off = match known {
+            Some(k) => k,
+            None => Self::counting_offsets(nv, edge_vertices.iter().flatten().copied()),
+        };
         let mut vertex_edges = vec![0u32; 2 * edge_vertices.len()];
         for (e, ev) in edge_vertices.iter().enumerate() {
             for &v in ev {
@@ -345,6 +405,7 @@ impl Topology {
             }
         }
         off.pop();
+        debug_assert_eq!(off.last().map_or(0, |&x| x as usize), vertex_edges.len());
         (off, vertex_edges)
     }
 

@@ -328,15 +328,79 @@ pub fn refine_topology(
 ) -> (Topology, Vec<[u32; 2]>) {
     let nv = child_vertex_count(parent, split);
     let c = child_edges(parent, split);
-    let topo = Topology::from_edges(
+    let offsets = child_offsets(parent, split, &c);
+    let topo = Topology::from_edges_counted(
         nv,
         c.face_offsets,
         c.face_vertices,
         c.face_edges,
         c.edge_vertices,
         order_rings,
+        offsets,
     );
     (topo, c.edge_halves)
+}
+
+/// The child level's vertex-face, vertex-edge and edge-face offsets, from the parent's counts
+/// (in the layout of [`Topology::from_edges_counted`]), for the triangle and polygon splits of
+/// a manifold parent; `None` for [`Split::QuadTri`] (counted by [`Topology::from_edges`]).
+///
+/// A parent vertex keeps one child face per parent face (its corner child) and one child edge
+/// per parent edge (its half). An edge point has, per incident face, three child faces and two
+/// interior edges (triangles) or two child faces and one interior edge (polygons), plus the
+/// edge's two halves. A face point has one child face and one interior edge per corner. A
+/// half of a parent edge lies in one child face per face of the edge, an interior edge in two.
+fn child_offsets(parent: &Topology, split: Split, c: &ChildEdges) -> Option<[Vec<u32>; 3]> {
+    let (faces_per_face, edges_per_face) = match split {
+        Split::Triangles => (3, 2),
+        Split::Polygons => (2, 1),
+        Split::QuadTri => return None,
+    };
+    let nv = parent.num_vertices as usize;
+    let ne = parent.num_edges();
+    let n_child = child_vertex_count(parent, split);
+    // A leading 0, then the offsets.
+    let prefix = |n: usize, count: &mut dyn FnMut(usize) -> u32| {
+        let mut off = Vec::with_capacity(n + 2);
+        off.push(0u32);
+        off.push(0u32);
+        let mut acc = 0u32;
+        for k in 0..n {
+            acc += count(k);
+            off.push(acc);
+        }
+        off
+    };
+    let edge_faces = |e: usize| parent.edge_face_offsets[e + 1] - parent.edge_face_offsets[e];
+    let vf = prefix(n_child, &mut |v| {
+        if v < nv {
+            parent.vertex_face_offsets[v + 1] - parent.vertex_face_offsets[v]
+        } else if v < nv + ne {
+            faces_per_face * edge_faces(v - nv)
+        } else {
+            parent.face_vertices(v - nv - ne).len() as u32
+        }
+    });
+    let ve = prefix(n_child, &mut |v| {
+        if v < nv {
+            parent.vertex_edge_offsets[v + 1] - parent.vertex_edge_offsets[v]
+        } else if v < nv + ne {
+            2 + edges_per_face * edge_faces(v - nv)
+        } else {
+            parent.face_vertices(v - nv - ne).len() as u32
+        }
+    });
+    let mut counts = vec![2u8; c.edge_vertices.len()];
+    for (e, h) in c.edge_halves.iter().enumerate() {
+        let n = edge_faces(e);
+        if n != 2 {
+            for &x in h {
+                counts[x as usize] = n.min(255) as u8;
+            }
+        }
+    }
+    let ef = prefix(counts.len(), &mut |e| counts[e] as u32);
+    Some([vf, ve, ef])
 }
 
 #[cfg(test)]
@@ -372,6 +436,23 @@ mod tests {
         let direct = Topology::build(&mesh);
         assert_eq!(grand.edge_vertices, direct.edge_vertices);
         assert_eq!(grand.face_edges, direct.face_edges);
+        assert_eq!(grand.edge_face_offsets, direct.edge_face_offsets);
+        assert_eq!(grand.edge_faces, direct.edge_faces);
+        assert_eq!(grand.vertex_face_offsets, direct.vertex_face_offsets);
+        assert_eq!(grand.vertex_edge_offsets, direct.vertex_edge_offsets);
+        // Unordered 1-rings: the scan order of `from_edges`.
+        let scan = Topology::from_edges(
+            grand.num_vertices as usize,
+            grand.face_offsets.clone(),
+            grand.face_vertices.clone(),
+            grand.face_edges.clone(),
+            grand.edge_vertices.clone(),
+            false,
+        );
+        assert_eq!(grand.vertex_faces, scan.vertex_faces);
+        assert_eq!(grand.vertex_face_corners, scan.vertex_face_corners);
+        assert_eq!(grand.vertex_edges, scan.vertex_edges);
+        assert_eq!(grand.vertex_kinds, scan.vertex_kinds);
     }
 
     #[test]

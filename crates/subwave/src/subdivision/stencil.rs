@@ -315,6 +315,82 @@ impl MaskCache {
     }
 }
 
+/// Direct-evaluation recipes of the common configurations for [`level_apply`]: the very
+/// (index, weight) sequences [`Level::stencil`] would build for them, with the weights merged
+/// in the same order, evaluated without building the stencil. Each recipe applies only where
+/// the [`Builder`] would merge nothing beyond what the recipe accounts for (checked per child,
+/// falling back to the general path), so the result is bit-identical.
+struct Fast {
+    /// Per valence: a smooth interior vertex whose mask weighs no face (Loop, butterfly,
+    /// midpoint): `(vertex, edges)`; zero weights are skipped as [`Builder::add_new`] does.
+    ring_vertex: Vec<Option<(f64, Vec<f64>)>>,
+    /// Per valence, on a level of quads: a smooth interior vertex with uniform nonzero edge and
+    /// face weights (Catmull-Clark): the merged weights of the vertex, of each ring vertex, of
+    /// each diagonal vertex.
+    quad_vertex: Vec<Option<[f64; 3]>>,
+    /// A smooth edge between two triangles: ends and opposite vertices' weights.
+    tri_edge: [f64; 4],
+    /// A smooth edge between two quads: merged weights of the ends and the two faces' other
+    /// vertices, `None` if a configuration the recipe does not cover (a zero end weight, or
+    /// exactly one zero face weight).
+    quad_edge: Option<[f64; 4]>,
+}
+
+impl Fast {
+    fn new(cache: &MaskCache) -> Fast {
+        let ring_vertex = cache
+            .smooth_vertex
+            .iter()
+            .map(|m| {
+                m.faces
+                    .iter()
+                    .all(|&w| w == 0.0)
+                    .then(|| (m.vertex, m.edges.clone()))
+            })
+            .collect();
+        let quad_vertex = cache
+            .smooth_vertex
+            .iter()
+            .map(|m| {
+                let (we, wf) = (*m.edges.first()?, *m.faces.first()?);
+                let uniform = m.edges.iter().all(|&w| w == we) && m.faces.iter().all(|&w| w == wf);
+                if !uniform || m.vertex == 0.0 || we == 0.0 || wf == 0.0 {
+                    return None;
+                }
+                // As `Builder::add_centroid` merges each quad's corners, face by face.
+                let q = wf / 4.0;
+                let mut v = m.vertex;
+                for _ in 0..m.faces.len() {
+                    v += q;
+                }
+                Some([v, we + q + q, q])
+            })
+            .collect();
+        let e3 = &cache.smooth_edge[3.min(CACHED_ARITY - 1)];
+        let f3 = |i: usize| e3.faces.get(i).copied().unwrap_or(0.0);
+        let tri_edge = [e3.ends[0], e3.ends[1], f3(0), f3(1)];
+        let e4 = &cache.smooth_edge[4.min(CACHED_ARITY - 1)];
+        let f4 = |i: usize| e4.faces.get(i).copied().unwrap_or(0.0);
+        let (w0, w1) = (f4(0) / 4.0, f4(1) / 4.0);
+        let quad_edge = (e4.ends[0] != 0.0
+            && e4.ends[1] != 0.0
+            && (f4(0) == 0.0) == (f4(1) == 0.0))
+            .then(|| {
+                if f4(0) == 0.0 {
+                    [e4.ends[0], e4.ends[1], 0.0, 0.0]
+                } else {
+                    [e4.ends[0] + w0 + w1, e4.ends[1] + w0 + w1, w0, w1]
+                }
+            });
+        Fast {
+            ring_vertex,
+            quad_vertex,
+            tri_edge,
+            quad_edge,
+        }
+    }
+}
+
 /// Per-thread scratch space of [`Level::stencil`].
 #[derive(Default)]
 struct Scratch {
@@ -347,6 +423,7 @@ struct Level<'a> {
     /// Per vertex: the number of incident edges with nonzero sharpness (saturating), or 255
     /// if the vertex has nonzero corner sharpness; 0 means the vertex is smooth.
     features: Vec<u8>,
+    fast: Fast,
     nv: usize,
     ne: usize,
     n_child: usize,
@@ -377,12 +454,14 @@ impl<'a> Level<'a> {
                 }
             }
         }
+        let cache = MaskCache::new(ctx.rules);
         Level {
             topo,
             quads,
             features,
             ctx,
-            cache: MaskCache::new(ctx.rules),
+            fast: Fast::new(&cache),
+            cache,
             split,
             needs_sectors: ctx.rules.needs_sectors(),
             needs_rings: ctx.rules.needs_rings(),
@@ -564,6 +643,161 @@ impl<'a> Level<'a> {
 }
 
 impl Level<'_> {
+    /// Child `j`'s value by a [`Fast`] recipe, bit-identical to evaluating
+    /// [`Level::stencil`]; `None` where no recipe applies.
+    #[inline]
+    fn fast_value<T: Interpolate>(&self, j: usize, src: &[T]) -> Option<T> {
+        let topo = self.topo;
+        let (nv, ne) = (self.nv, self.ne);
+        let mut acc = T::zero();
+        if j < nv {
+            let v = j;
+            if self.features[v] != 0 || self.split == Split::QuadTri {
+                return None;
+            }
+            let (ea, eb) = (
+                topo.vertex_edge_offsets[v] as usize,
+                topo.vertex_edge_offsets[v + 1] as usize,
+            );
+            let (fa, fb) = (
+                topo.vertex_face_offsets[v] as usize,
+                topo.vertex_face_offsets[v + 1] as usize,
+            );
+            let n = eb - ea;
+            if n == 0 || n != fb - fa || n >= CACHED_VALENCE {
+                return None;
+            }
+            let edges = &topo.vertex_edges[ea..eb];
+            if let Some((wv, we)) = &self.fast.ring_vertex[n] {
+                if *wv != 0.0 {
+                    acc.add_scaled(&src[v], *wv);
+                }
+                for (&e, &w) in edges.iter().zip(we) {
+                    if w != 0.0 {
+                        let r = topo.other_vertex(e as usize, v as u32);
+                        acc.add_scaled(&src[r as usize], w);
+                    }
+                }
+                return Some(acc);
+            }
+            let [wv, wr, wd] = self.fast.quad_vertex[n]?;
+            if topo.face_arity != 4 {
+                return None;
+            }
+            // The diagonal corner of each quad, which must be new to the stencil.
+            let mut ring = [0u32; CACHED_VALENCE];
+            for (r, &e) in ring.iter_mut().zip(edges) {
+                *r = topo.other_vertex(e as usize, v as u32);
+            }
+            let ring = &ring[..n];
+            let mut diag = [0u32; CACHED_VALENCE];
+            let faces = &topo.vertex_faces[fa..fb];
+            let corners = &topo.vertex_face_corners[fa..fb];
+            for i in 0..n {
+                let f = faces[i] as usize;
+                let d = topo.face_vertices[4 * f + ((corners[i] as usize + 2) & 3)];
+                if ring.contains(&d) || diag[..i].contains(&d) {
+                    return None;
+                }
+                diag[i] = d;
+            }
+            acc.add_scaled(&src[v], wv);
+            for &r in ring {
+                acc.add_scaled(&src[r as usize], wr);
+            }
+            for &d in &diag[..n] {
+                acc.add_scaled(&src[d as usize], wd);
+            }
+            Some(acc)
+        } else if j < nv + ne {
+            let e = j - nv;
+            let (fa, fb) = (
+                topo.edge_face_offsets[e] as usize,
+                topo.edge_face_offsets[e + 1] as usize,
+            );
+            if fb - fa != 2 || topo.edge_sharpness[e] != 0.0 || self.needs_rings {
+                return None;
+            }
+            let [a, b] = topo.edge_vertices[e];
+            if self.needs_sectors && !(self.no_sector(a) && self.no_sector(b)) {
+                return None;
+            }
+            let (f0, f1) = (
+                topo.edge_faces[fa] as usize,
+                topo.edge_faces[fa + 1] as usize,
+            );
+            match (self.split, topo.face_arity) {
+                (Split::Triangles, 3) => {
+                    let [wa, wb, w0, w1] = self.fast.tri_edge;
+                    // The corner opposite edge `e` in triangle `f`.
+                    let opposite = |f: usize| {
+                        let fe = &topo.face_edges[3 * f..3 * f + 3];
+                        let i = if fe[0] as usize == e {
+                            2
+                        } else if fe[1] as usize == e {
+                            0
+                        } else {
+                            1
+                        };
+                        topo.face_vertices[3 * f + i]
+                    };
+                    let (o0, o1) = (opposite(f0), opposite(f1));
+                    if o0 == o1 && w0 != 0.0 && w1 != 0.0 {
+                        return None;
+                    }
+                    for (x, w) in [(a, wa), (b, wb), (o0, w0), (o1, w1)] {
+                        if w != 0.0 {
+                            acc.add_scaled(&src[x as usize], w);
+                        }
+                    }
+                    Some(acc)
+                }
+                (Split::Polygons, 4) => {
+                    let [wa, wb, w0, w1] = self.fast.quad_edge?;
+                    acc.add_scaled(&src[a as usize], wa);
+                    acc.add_scaled(&src[b as usize], wb);
+                    if w0 == 0.0 {
+                        return Some(acc);
+                    }
+                    // Each face's two corners off the edge, in face order.
+                    let others = |f: usize| {
+                        let fv = &topo.face_vertices[4 * f..4 * f + 4];
+                        let mut o = [0u32; 2];
+                        let mut k = 0;
+                        for &x in fv {
+                            if x != a && x != b && k < 2 {
+                                o[k] = x;
+                                k += 1;
+                            }
+                        }
+                        o
+                    };
+                    let (x, y) = (others(f0), others(f1));
+                    if x.contains(&y[0]) || x.contains(&y[1]) {
+                        return None;
+                    }
+                    for &u in &x {
+                        acc.add_scaled(&src[u as usize], w0);
+                    }
+                    for &u in &y {
+                        acc.add_scaled(&src[u as usize], w1);
+                    }
+                    Some(acc)
+                }
+                _ => None,
+            }
+        } else if self.split != Split::QuadTri {
+            let fv = topo.face_vertices(j - nv - ne);
+            let wf = 1.0 / fv.len() as f64;
+            for &v in fv {
+                acc.add_scaled(&src[v as usize], wf);
+            }
+            Some(acc)
+        } else {
+            None
+        }
+    }
+
     /// The stencil of the edge point of `e` for rules that see the ends' ordered 1-rings
     /// ([`Rules::needs_rings`]): ends, opposite vertices, then each end's ring weights.
     fn ring_edge_stencil(&self, e: usize, s: &mut Scratch) {
@@ -706,8 +940,10 @@ pub fn level_apply<T: Interpolate>(topo: &Topology, ctx: &LevelContext, src: &[T
         .into_par_iter()
         .with_min_len(CHUNK)
         .map_init(Scratch::default, |s, j| {
-            level.stencil(j, s);
-            s.b.eval(src)
+            level.fast_value(j, src).unwrap_or_else(|| {
+                level.stencil(j, s);
+                s.b.eval(src)
+            })
         })
         .collect_into_vec(&mut out);
     out
@@ -745,6 +981,45 @@ mod tests {
             sharpness: 1.5,
         });
         m
+    }
+
+    /// Degenerate closed meshes where the direct path's recipes must fall back to the general
+    /// path (repeated opposite vertices, diagonals that are ring vertices, valence 2): still
+    /// bit-identical to the tables.
+    #[test]
+    fn direct_evaluation_falls_back_on_degenerate_meshes() {
+        let p = vec![
+            glam::DVec3::new(0.0, 0.0, 0.0),
+            glam::DVec3::new(1.0, 0.1, 0.0),
+            glam::DVec3::new(1.2, 1.0, 0.3),
+            glam::DVec3::new(-0.1, 0.9, 0.2),
+        ];
+        let pillows = [
+            (
+                Mesh::from_faces(p.clone(), vec![vec![0, 1, 2], vec![0, 2, 1]]),
+                Scheme::Loop,
+            ),
+            (
+                Mesh::from_faces(p.clone(), vec![vec![0, 1, 2, 3], vec![3, 2, 1, 0]]),
+                Scheme::CatmullClark,
+            ),
+            (
+                Mesh::from_faces(p, vec![vec![0, 1, 2, 3], vec![3, 2, 1, 0]]),
+                Scheme::Bilinear,
+            ),
+        ];
+        // One level: deeper levels of these meshes have repeated edges, outside the
+        // refiner's preconditions.
+        for (m, scheme) in pillows {
+            let o = SubdivideOptions {
+                scheme,
+                levels: 1,
+                ..Default::default()
+            };
+            let table = Refinement::build(&m, &o, true).unwrap();
+            let direct = subdivide(&m, &o).unwrap();
+            assert_eq!(table.positions, direct.positions, "{o:?}");
+        }
     }
 
     /// The direct path ([`level_apply`], used by `subdivide`) matches the stencil tables bit
