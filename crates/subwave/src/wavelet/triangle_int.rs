@@ -27,7 +27,7 @@
 
 use rayon::prelude::*;
 
-use super::triangle::{edge_face_count, TriangleWavelet, UpdatePlan};
+use super::triangle::{edge_face_count, RowPattern, TriangleWavelet, UpdatePlan};
 use crate::hierarchy::Hierarchy;
 use crate::subdivision::refine::Split;
 use crate::subdivision::stencil::StencilTable;
@@ -65,6 +65,9 @@ struct DyadicRows {
     k: Vec<i8>,
     /// Per row: whether it is dyadic.
     ok: Vec<bool>,
+    /// The level's most common odd row ([`RowPattern`]) in sixteenths, if it is dyadic, and
+    /// per row whether the row is that pattern.
+    pattern: Option<(Vec<i64>, Vec<bool>)>,
 }
 
 impl DyadicRows {
@@ -91,8 +94,37 @@ impl DyadicRows {
                     && ks.iter().map(|&k| (k as i32).abs()).sum::<i32>() <= 32
             })
             .collect();
-        DyadicRows { k, ok }
+        let p = RowPattern::new(t);
+        let pk: Vec<i64> = p.weights.iter().map(|&w| (w * 16.0) as i64).collect();
+        let dyadic_pattern = !pk.is_empty()
+            && p.weights
+                .iter()
+                .zip(&pk)
+                .all(|(&w, &k)| w * 16.0 == k as f64)
+            && pk.iter().all(|k| k.abs() <= 16)
+            && pk.iter().map(|k| k.abs()).sum::<i64>() <= 32;
+        DyadicRows {
+            k,
+            ok,
+            pattern: dyadic_pattern.then_some((pk, p.rows)),
+        }
     }
+}
+
+/// `Σ k_i y[idx_i]` for a row of `M` entries (`None` if `k` or `idx` is not that long).
+#[inline(always)]
+fn idot<const M: usize>(k: &[i64], idx: &[u32], y: &[[i64; 3]]) -> Option<[i64; 3]> {
+    let (Ok(k), Ok(idx)) = (<&[i64; M]>::try_from(k), <&[u32; M]>::try_from(idx)) else {
+        return None;
+    };
+    let mut acc = [0i64; 3];
+    for i in 0..M {
+        let v = y[idx[i] as usize];
+        for q in 0..3 {
+            acc[q] += k[i] * v[q];
+        }
+    }
+    Some(acc)
 }
 
 /// Sources of the dyadic prediction lie in `[−2^DYADIC_BOUND, 2^DYADIC_BOUND)`.
@@ -292,15 +324,28 @@ impl<'h> IntTriangleWavelet<'h> {
     fn predict(&self, level: usize, even: &[[i64; 3]], odd: &mut [[i64; 3]], sign: i64) {
         let t = &self.tables[level];
         let nc = even.len();
-        let dyadic = self
-            .dyadic
-            .get(level)
-            .filter(|d| d.k.len() == t.weights.len() && d.ok.len() == t.len() && all_small(even));
+        let dyadic = self.dyadic.get(level).filter(|d| {
+            d.k.len() == t.weights.len()
+                && d.ok.len() == t.len()
+                && d.pattern.as_ref().is_none_or(|p| p.1.len() == t.len())
+                && all_small(even)
+        });
         odd.par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
             let first = nc + c * CHUNK;
             for (i, x) in out.iter_mut().enumerate() {
                 let r = first + i;
                 let (a, b) = (t.offsets[r] as usize, t.offsets[r + 1] as usize);
+                let pattern = dyadic.and_then(|d| d.pattern.as_ref()).filter(|p| p.1[r]);
+                if let Some((pk, _)) = pattern {
+                    let idx = &t.indices[a..b];
+                    if let Some(acc) = idot::<8>(pk, idx, even).or_else(|| idot::<2>(pk, idx, even))
+                    {
+                        for q in 0..3 {
+                            x[q] += sign * ((acc[q] + 8) >> 4);
+                        }
+                        continue;
+                    }
+                }
                 if let Some(d) = dyadic.filter(|d| d.ok[r]) {
                     let mut acc = [0i64; 3];
                     for (&k, &w) in t.indices[a..b].iter().zip(&d.k[a..b]) {
