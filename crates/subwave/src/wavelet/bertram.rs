@@ -325,8 +325,9 @@ impl BSplineWavelet {
     ) -> Result<()> {
         check_len(coarse, data.len())?;
         let ctx = Ctx::new(coarse, self.boundary);
+        let mut small = Small::scan(coarse, data);
         for l in self.degree.integer_lifts() {
-            ctx.int_lift(*l, data, false)?;
+            ctx.int_lift_tracked(*l, data, false, &mut small)?;
         }
         Ok(())
     }
@@ -343,8 +344,9 @@ impl BSplineWavelet {
     ) -> Result<()> {
         check_len(coarse, data.len())?;
         let ctx = Ctx::new(coarse, self.boundary);
+        let mut small = Small::scan(coarse, data);
         for l in self.degree.integer_lifts().iter().rev() {
-            ctx.int_lift(*l, data, true)?;
+            ctx.int_lift_tracked(*l, data, true, &mut small)?;
         }
         Ok(())
     }
@@ -654,6 +656,226 @@ fn par_chunks<T: Send, F: Fn(usize, &mut [T]) + Sync + Send>(out: &mut [T], f: F
         .for_each(|(c, chunk)| f(c * MIN_LEN, chunk));
 }
 
+/// The weight `a = P / Q` of an integer lift, for [`Ctx::int_lift_w`].
+trait LiftWeight: Copy + Send + Sync {
+    /// Whether `P` and `Q` are Table 1's (compile-time constants with the bounds that
+    /// [`FAST_BOUND`] assumes); false: the general path only.
+    const FAST: bool;
+    /// Numerator.
+    const P: i64;
+    /// Denominator (positive).
+    const Q: i64;
+}
+
+/// Compile-time `a = P / Q`.
+#[derive(Clone, Copy)]
+struct ConstWeight<const P: i64, const Q: i64>;
+
+impl<const P: i64, const Q: i64> LiftWeight for ConstWeight<P, Q> {
+    const FAST: bool = true;
+    const P: i64 = P;
+    const Q: i64 = Q;
+}
+
+/// A weight known at run time only (the general path).
+#[derive(Clone, Copy)]
+struct DynWeight;
+
+impl LiftWeight for DynWeight {
+    const FAST: bool = false;
+    const P: i64 = 0;
+    const Q: i64 = 1;
+}
+
+/// Inputs of the regular formulas lie in `[−2^FAST_BOUND, 2^FAST_BOUND)`: then with `|P| ≤ 9`,
+/// `Q ≤ 32` no intermediate exceeds `2^58` (`2|P|(|P| + Q) · 4 · 2^45 < 2^57`) and the
+/// updated value fits `i64`.
+const FAST_BOUND: u32 = 45;
+
+/// `c` as `i64`.
+#[inline(always)]
+fn coord<I: IntCoord>(c: I) -> i64 {
+    let y: i128 = c.into();
+    y as i64
+}
+
+/// Which parts of a level's data lie within `[−2^FAST_BOUND, 2^FAST_BOUND)`.
+#[derive(Clone, Copy, Debug)]
+struct Small {
+    v: bool,
+    e: bool,
+    f: bool,
+}
+
+impl Small {
+    /// Scans the level's data (`V + E + F` entries of the level refined from `t`).
+    fn scan<I: IntCoord>(t: &Topology, data: &[[I; 3]]) -> Small {
+        let nv = t.num_vertices as usize;
+        let ne = t.num_edges();
+        let all = |x: &[[I; 3]]| x.par_chunks(1 << 14).all(all_small);
+        Small {
+            v: all(&data[..nv]),
+            e: all(&data[nv..nv + ne]),
+            f: all(&data[nv + ne..]),
+        }
+    }
+}
+
+/// Whether every value of `x` lies in `[−2^FAST_BOUND, 2^FAST_BOUND)`.
+#[inline]
+fn all_small<I: IntCoord>(x: &[[I; 3]]) -> bool {
+    let mut chk = 0u64;
+    for y in x {
+        for &c in y {
+            chk |= (coord(c) as u64).wrapping_add(1 << FAST_BOUND);
+        }
+    }
+    chk >> (FAST_BOUND + 1) == 0
+}
+
+/// Runs `f(first, chunk)` over `out` in parallel chunks (as [`par_chunks`]); true iff every
+/// value left in `out` is small ([`all_small`]).
+#[inline]
+fn par_chunks_small<I: IntCoord, F: Fn(usize, &mut [[I; 3]]) + Sync + Send>(
+    out: &mut [[I; 3]],
+    f: F,
+) -> bool {
+    let big = std::sync::atomic::AtomicBool::new(false);
+    out.par_chunks_mut(MIN_LEN)
+        .enumerate()
+        .for_each(|(c, chunk)| {
+            f(c * MIN_LEN, chunk);
+            if !all_small(chunk) {
+                big.store(true, Ordering::Relaxed);
+            }
+        });
+    !big.load(Ordering::Relaxed)
+}
+
+/// `⌊n / D⌋` for a compile-time `D > 0`: a shift for the power-of-two part, a division by the
+/// odd part (a multiplication after compilation).
+#[inline(always)]
+fn floor_div_const<const D: i64>(n: i64) -> i64 {
+    let k = D.trailing_zeros();
+    let c = D >> k;
+    if c == 1 {
+        n >> k
+    } else {
+        (n >> k).div_euclid(c)
+    }
+}
+
+/// `x ± [p(p sx + q sy) / q²]` (`+` forward, `−` inverse): the rounded term of the
+/// two-neighbour-class update of [`Ctx::int_lift`] when both classes have four members
+/// (`dx = dy = 4`: `[(4p² sx dy + 4pq sy dx) / (q² dx dy)]`, the same rational). `None` if a
+/// result does not fit `I`: the caller takes the general path, which reports the overflow.
+/// Precondition: `x` and every value read lie within [`FAST_BOUND`].
+#[inline(always)]
+fn regular_term2<I: IntCoord, W: LiftWeight>(
+    x: &[I; 3],
+    ix: &[u32],
+    xs: &[[I; 3]],
+    iy: &[u32],
+    ys: &[[I; 3]],
+    inverse: bool,
+) -> Option<[I; 3]> {
+    let (mut sx, mut sy) = ([0i64; 3], [0i64; 3]);
+    for &i in &ix[..4] {
+        let y = xs[i as usize];
+        for k in 0..3 {
+            sx[k] += coord(y[k]);
+        }
+    }
+    for &i in &iy[..4] {
+        let y = ys[i as usize];
+        for k in 0..3 {
+            sy[k] += coord(y[k]);
+        }
+    }
+    let (p, q) = (W::P, W::Q);
+    let mut out = *x;
+    for k in 0..3 {
+        let n = 2 * p * (p * sx[k] + q * sy[k]) + q * q;
+        let r = floor_div_const2::<W>(n);
+        let c = coord(x[k]);
+        let z = if inverse { c - r } else { c + r };
+        out[k] = I::try_from(z as i128).ok()?;
+    }
+    Some(out)
+}
+
+/// `⌊n / (2Q²)⌋` of `W`.
+#[inline(always)]
+fn floor_div_const2<W: LiftWeight>(n: i64) -> i64 {
+    // Table 1's denominators 2Q²: 2, 8, 32, 72, 18, 512, 2048.
+    match 2 * W::Q * W::Q {
+        2 => floor_div_const::<2>(n),
+        8 => floor_div_const::<8>(n),
+        18 => floor_div_const::<18>(n),
+        32 => floor_div_const::<32>(n),
+        72 => floor_div_const::<72>(n),
+        512 => floor_div_const::<512>(n),
+        2048 => floor_div_const::<2048>(n),
+        d => n.div_euclid(d),
+    }
+}
+
+/// `⌊n / (2Q)⌋` of `W`.
+#[inline(always)]
+fn floor_div_const1<W: LiftWeight>(n: i64) -> i64 {
+    // Table 1's denominators 2Q: 2, 4, 6, 8, 12, 32, 64.
+    match 2 * W::Q {
+        2 => floor_div_const::<2>(n),
+        4 => floor_div_const::<4>(n),
+        6 => floor_div_const::<6>(n),
+        8 => floor_div_const::<8>(n),
+        12 => floor_div_const::<12>(n),
+        32 => floor_div_const::<32>(n),
+        64 => floor_div_const::<64>(n),
+        d => n.div_euclid(d),
+    }
+}
+
+/// `x ± [2a s̄]` for an edge with one or two neighbours `idx` in `src` (`s̄` their mean:
+/// `[2p s / (q d)]`, [`Ctx::int_lift`]'s one-class term); `None` for another count or a
+/// result that does not fit `I`. Precondition as [`regular_term2`].
+#[inline(always)]
+fn regular_term1<I: IntCoord, W: LiftWeight>(
+    x: &[I; 3],
+    idx: &[u32],
+    src: &[[I; 3]],
+    inverse: bool,
+) -> Option<[I; 3]> {
+    let (p, q) = (W::P, W::Q);
+    // `[2p s / (q d)] = ⌊(2 m s + q) / (2q)⌋` with `m = 2p / d`.
+    let mut s = [0i64; 3];
+    let m = match *idx {
+        [a, b] => {
+            let (ya, yb) = (src[a as usize], src[b as usize]);
+            for k in 0..3 {
+                s[k] = coord(ya[k]) + coord(yb[k]);
+            }
+            p
+        }
+        [a] => {
+            let y = src[a as usize];
+            for k in 0..3 {
+                s[k] = coord(y[k]);
+            }
+            2 * p
+        }
+        _ => return None,
+    };
+    let mut out = *x;
+    for k in 0..3 {
+        let r = floor_div_const1::<W>(2 * m * s[k] + q);
+        let c = coord(x[k]);
+        let z = if inverse { c - r } else { c + r };
+        out[k] = I::try_from(z as i128).ok()?;
+    }
+    Some(out)
+}
+
 /// Splits a level's data into its `v`, `e` and `f` parts.
 fn split3<'d, T>(t: &Topology, data: &'d mut [T]) -> (&'d mut [T], &'d mut [T], &'d mut [T]) {
     let (v, rest) = data.split_at_mut(t.num_vertices as usize);
@@ -926,7 +1148,57 @@ impl<'a> Ctx<'a> {
     }
 
     /// Integer lift (eqs. 4.8, 4.9) or, if `inverse`, its inverse (eqs. 4.10, 4.11).
+    #[cfg(test)]
     fn int_lift<I: IntCoord>(&self, l: IntLift, data: &mut [[I; 3]], inverse: bool) -> Result<()> {
+        let mut small = Small::scan(self.t, data);
+        self.int_lift_tracked(l, data, inverse, &mut small)
+    }
+
+    /// [`Ctx::int_lift`] with `small` telling which parts of `data` lie within
+    /// [`FAST_BOUND`] on entry, updated on return.
+    fn int_lift_tracked<I: IntCoord>(
+        &self,
+        l: IntLift,
+        data: &mut [[I; 3]],
+        inverse: bool,
+        small: &mut Small,
+    ) -> Result<()> {
+        // The lifts of Table 1 with their weights as compile-time constants (the regular
+        // elements' divisions become shifts and multiplications); any other lift at run time.
+        macro_rules! dispatch {
+            ($(($p:literal, $q:literal)),*) => {
+                match (l.a_num, l.a_den, l.b) {
+                    $(($p, $q, 1) => self.int_lift_w(ConstWeight::<{ $p }, { $q }>, l, data, inverse, small),)*
+                    _ => self.int_lift_w(DynWeight, l, data, inverse, small),
+                }
+            };
+        }
+        dispatch!(
+            (-1, 2),
+            (1, 4),
+            (-1, 4),
+            (-1, 1),
+            (3, 16),
+            (-1, 6),
+            (-9, 16),
+            (-4, 3),
+            (5, 32)
+        )
+    }
+
+    /// [`Ctx::int_lift`] with the weight `a = P/Q` of `W` if [`LiftWeight::FAST`] (then equal
+    /// to `l.a_num / l.a_den`, and `l.b == 1`): in a pass whose inputs are all below
+    /// [`FAST_BOUND`] in magnitude (`small`), regular elements (valence-4 vertices, quads,
+    /// edges with one or two faces) take exact `i64` formulas with constant divisors; every
+    /// other element the general path. Each pass records whether its outputs are small.
+    fn int_lift_w<I: IntCoord, W: LiftWeight>(
+        &self,
+        _w: W,
+        l: IntLift,
+        data: &mut [[I; 3]],
+        inverse: bool,
+        small: &mut Small,
+    ) -> Result<()> {
         let t = self.t;
         let nv = t.num_vertices as usize;
         let ne = t.num_edges();
@@ -1005,8 +1277,8 @@ impl<'a> Ctx<'a> {
             *x = y;
             true
         };
-        let vertex_pass = |v: &mut [[I; 3]], e: &[[I; 3]], f: &[[I; 3]]| {
-            par_update(v, |i, x| {
+        let vertex_pass = |v: &mut [[I; 3]], e: &[[I; 3]], f: &[[I; 3]], regular: bool| {
+            let general = |i: usize, x: &mut [I; 3]| {
                 if fast {
                     let r = isum64(t.vertex_faces(i), f).and_then(|(sf, df)| {
                         let (se, de) = self.e_bar_v_int64(i, e)?;
@@ -1019,10 +1291,26 @@ impl<'a> Ctx<'a> {
                 let (sf, df) = isum(t.vertex_faces(i), f);
                 let (se, de) = self.e_bar_v_int(i, e);
                 apply(x, term2(sf, df, se, de), b * b, i);
-            });
+            };
+            par_chunks_small(v, |v0, out| {
+                let fo = &t.vertex_face_offsets[v0..=v0 + out.len()];
+                let eo = &t.vertex_edge_offsets[v0..=v0 + out.len()];
+                for (k, x) in out.iter_mut().enumerate() {
+                    let (fa, ea) = (fo[k] as usize, eo[k] as usize);
+                    if regular && fo[k + 1] as usize == fa + 4 && eo[k + 1] as usize == ea + 4 {
+                        let fi = &t.vertex_faces[fa..fa + 4];
+                        let ei = &t.vertex_edges[ea..ea + 4];
+                        if let Some(y) = regular_term2::<I, W>(x, fi, f, ei, e, inverse) {
+                            *x = y;
+                            continue;
+                        }
+                    }
+                    general(v0 + k, x);
+                }
+            })
         };
-        let face_pass = |f: &mut [[I; 3]], v: &[[I; 3]], e: &[[I; 3]]| {
-            par_update(f, |i, x| {
+        let face_pass = |f: &mut [[I; 3]], v: &[[I; 3]], e: &[[I; 3]], regular: bool| {
+            let general = |i: usize, x: &mut [I; 3]| {
                 if fast {
                     let r = isum64(t.face_vertices(i), v).and_then(|(sv, dv)| {
                         let (se, de) = isum64(t.face_edges(i), e)?;
@@ -1035,10 +1323,23 @@ impl<'a> Ctx<'a> {
                 let (sv, dv) = isum(t.face_vertices(i), v);
                 let (se, de) = isum(t.face_edges(i), e);
                 apply(x, term2(sv, dv, se, de), b * b, nv + ne + i);
-            });
+            };
+            par_chunks_small(f, |f0, out| {
+                for (k, x) in out.iter_mut().enumerate() {
+                    let i = f0 + k;
+                    let (fv, fe) = (t.face_vertices(i), t.face_edges(i));
+                    if regular && fv.len() == 4 && fe.len() == 4 {
+                        if let Some(y) = regular_term2::<I, W>(x, fv, v, fe, e, inverse) {
+                            *x = y;
+                            continue;
+                        }
+                    }
+                    general(i, x);
+                }
+            })
         };
-        let edge_pass = |e: &mut [[I; 3]], src: &[[I; 3]], from_faces: bool| {
-            par_update(e, |i, x| {
+        let edge_pass = |e: &mut [[I; 3]], src: &[[I; 3]], from_faces: bool, regular: bool| {
+            let general = |i: usize, x: &mut [I; 3]| {
                 let idx: &[u32] = if from_faces {
                     t.edge_faces(i)
                 } else {
@@ -1052,24 +1353,49 @@ impl<'a> Ctx<'a> {
                 }
                 let (s, d) = isum(idx, src);
                 apply(x, term1(s, d), b, nv + i);
-            });
+            };
+            if from_faces {
+                par_chunks_small(e, |e0, out| {
+                    let o = &t.edge_face_offsets[e0..=e0 + out.len()];
+                    for (k, x) in out.iter_mut().enumerate() {
+                        let idx = &t.edge_faces[o[k] as usize..o[k + 1] as usize];
+                        match regular_term1::<I, W>(x, idx, src, inverse) {
+                            Some(y) if regular => *x = y,
+                            _ => general(e0 + k, x),
+                        }
+                    }
+                })
+            } else {
+                par_chunks_small(e, |e0, out| {
+                    let ev = &t.edge_vertices[e0..e0 + out.len()];
+                    for (k, (x, idx)) in out.iter_mut().zip(ev).enumerate() {
+                        match regular_term1::<I, W>(x, idx, src, inverse) {
+                            Some(y) if regular => *x = y,
+                            _ => general(e0 + k, x),
+                        }
+                    }
+                })
+            }
         };
+        // The regular formulas need every input of the pass within `FAST_BOUND`.
+        let ok = |a: bool, b: bool, c: bool| W::FAST && fast && !self.symmetric && a && b && c;
+        let s = small;
         match (l.kind, inverse) {
             (S, false) => {
-                vertex_pass(v, e, f);
-                edge_pass(e, f, true);
+                s.v = vertex_pass(v, e, f, ok(s.v, s.e, s.f));
+                s.e = edge_pass(e, f, true, ok(s.e, s.f, true));
             }
             (S, true) => {
-                edge_pass(e, f, true);
-                vertex_pass(v, e, f);
+                s.e = edge_pass(e, f, true, ok(s.e, s.f, true));
+                s.v = vertex_pass(v, e, f, ok(s.v, s.e, s.f));
             }
             (W, false) => {
-                face_pass(f, v, e);
-                edge_pass(e, v, false);
+                s.f = face_pass(f, v, e, ok(s.f, s.v, s.e));
+                s.e = edge_pass(e, v, false, ok(s.e, s.v, true));
             }
             (W, true) => {
-                edge_pass(e, v, false);
-                face_pass(f, v, e);
+                s.e = edge_pass(e, v, false, ok(s.e, s.v, true));
+                s.f = face_pass(f, v, e, ok(s.f, s.v, s.e));
             }
         }
         o.check::<I>("refined")

@@ -132,6 +132,8 @@ pub struct Decomposition {
 pub struct TriangleWavelet<'h> {
     h: &'h Hierarchy,
     tables: Vec<StencilTable>,
+    /// Per level, the most common odd-row stencil ([`RowPattern`]).
+    patterns: Vec<RowPattern>,
     /// The update step's plan (lifted wavelets; empty otherwise).
     update_plan: UpdatePlan,
     kind: Kind,
@@ -239,6 +241,7 @@ impl<'h> TriangleWavelet<'h> {
         }
         Ok(TriangleWavelet {
             h,
+            patterns: tables.iter().map(RowPattern::new).collect(),
             tables,
             update_plan: if lifted {
                 UpdatePlan::new(h)
@@ -316,6 +319,7 @@ impl<'h> TriangleWavelet<'h> {
         Ok(TriangleWavelet {
             h,
             tables: r.stencils,
+            patterns: Vec::new(),
             update_plan: UpdatePlan::default(),
             kind: Kind::Loop,
             frame: DetailFrame::Global,
@@ -666,6 +670,7 @@ impl<'h> TriangleWavelet<'h> {
     fn predict_odd(&self, level: usize, even: &[DVec3], odd: &mut [DVec3], sign: f64) {
         let t = &self.tables[level];
         let nc = even.len();
+        let pat = self.patterns.get(level).filter(|p| p.rows.len() == t.len());
         odd.par_chunks_mut(ODD_CHUNK)
             .enumerate()
             .for_each(|(c, out)| {
@@ -673,10 +678,17 @@ impl<'h> TriangleWavelet<'h> {
                 for (i, x) in out.iter_mut().enumerate() {
                     let r = first + i;
                     let (a, b) = (t.offsets[r] as usize, t.offsets[r + 1] as usize);
-                    let mut acc = DVec3::ZERO;
-                    for (&k, &w) in t.indices[a..b].iter().zip(&t.weights[a..b]) {
-                        acc += w * even[k as usize];
-                    }
+                    let idx = &t.indices[a..b];
+                    let acc = match pat.filter(|p| p.rows[r]) {
+                        Some(p) => p.dot(idx, even),
+                        None => {
+                            let mut acc = DVec3::ZERO;
+                            for (&k, &w) in idx.iter().zip(&t.weights[a..b]) {
+                                acc += w * even[k as usize];
+                            }
+                            acc
+                        }
+                    };
                     if sign > 0.0 {
                         *x += acc;
                     } else {
@@ -913,6 +925,77 @@ pub(crate) fn edge_face_count(t: &Topology, phi: Option<&[u8]>, k: usize, e: u32
     match phi {
         Some(p) => p[k] as u32,
         None => t.edge_faces(e as usize).len() as u32,
+    }
+}
+
+/// The most common odd-row stencil of a level table (the regular butterfly mask, the
+/// midpoint's two halves; built once per hierarchy): the prediction of a flagged row reads its
+/// weights from the pattern — the same values in the same order, so the same result bit for
+/// bit — instead of streaming them from the table.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct RowPattern {
+    /// The pattern's weights (at most [`RowPattern::MAX`]; empty: no pattern).
+    pub(crate) weights: Vec<f64>,
+    /// Per table row: whether its weights are the pattern's (even rows: false).
+    pub(crate) rows: Vec<bool>,
+}
+
+impl RowPattern {
+    /// Longest pattern.
+    const MAX: usize = 12;
+
+    /// The pattern of `t`'s odd rows: the most frequent weight row among 64 samples.
+    pub(crate) fn new(t: &StencilTable) -> Self {
+        let nc = t.num_sources as usize;
+        let n = t.len();
+        if n <= nc {
+            return RowPattern::default();
+        }
+        let row = |r: usize| &t.weights[t.offsets[r] as usize..t.offsets[r + 1] as usize];
+        let same = |a: &[f64], b: &[f64]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+        };
+        let samples: Vec<&[f64]> = (0..64).map(|i| row(nc + i * (n - nc) / 64)).collect();
+        let Some(best) = samples
+            .iter()
+            .max_by_key(|s| samples.iter().filter(|x| same(x, s)).count())
+            .filter(|s| s.len() <= Self::MAX)
+        else {
+            return RowPattern::default();
+        };
+        RowPattern {
+            weights: best.to_vec(),
+            rows: (0..n)
+                .into_par_iter()
+                .with_min_len(ODD_CHUNK)
+                .map(|r| r >= nc && same(row(r), best))
+                .collect(),
+        }
+    }
+
+    /// `Σ w_i x[idx_i]` in order, `w` the pattern (`idx` as long as the pattern).
+    #[inline]
+    pub(crate) fn dot(&self, idx: &[u32], x: &[DVec3]) -> DVec3 {
+        #[inline(always)]
+        fn fixed<const M: usize>(w: &[f64; M], idx: &[u32; M], x: &[DVec3]) -> DVec3 {
+            let mut acc = DVec3::ZERO;
+            for i in 0..M {
+                acc += w[i] * x[idx[i] as usize];
+            }
+            acc
+        }
+        let w = &self.weights[..];
+        if let (Ok(w), Ok(idx)) = (w.try_into(), idx.try_into()) {
+            return fixed::<2>(w, idx, x);
+        }
+        if let (Ok(w), Ok(idx)) = (w.try_into(), idx.try_into()) {
+            return fixed::<8>(w, idx, x);
+        }
+        let mut acc = DVec3::ZERO;
+        for (&k, &w) in idx.iter().zip(w) {
+            acc += w * x[k as usize];
+        }
+        acc
     }
 }
 

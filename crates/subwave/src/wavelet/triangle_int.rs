@@ -27,7 +27,7 @@
 
 use rayon::prelude::*;
 
-use super::triangle::{edge_face_count, TriangleWavelet, UpdatePlan};
+use super::triangle::{edge_face_count, RowPattern, TriangleWavelet, UpdatePlan};
 use crate::hierarchy::Hierarchy;
 use crate::subdivision::refine::Split;
 use crate::subdivision::stencil::StencilTable;
@@ -47,8 +47,100 @@ const CHUNK: usize = 8192;
 pub struct IntTriangleWavelet<'h> {
     h: &'h Hierarchy,
     tables: Vec<StencilTable>,
+    /// Per level, the table's weights as sixteenths ([`DyadicRows`]).
+    dyadic: Vec<DyadicRows>,
     update_plan: UpdatePlan,
     lifted: bool,
+}
+
+/// A level table's weights as sixteenths `k = 16 w` (built once per hierarchy): rows whose
+/// weights all are such (with `Σ |k| ≤ 32`) are predicted in exact `i64` arithmetic,
+/// `⌊(Σ k y + 8) / 16⌋`, when every source lies within `2^47` in magnitude — the value
+/// the `f64` evaluation gives then, since every product and partial sum is a multiple of
+/// 1/16 below `2^49` (exact in `f64`). The regular butterfly mask (8, 8, 2, 2, −1 ×4) and
+/// midpoint (8, 8) are such rows; the extraordinary butterfly masks are not.
+#[derive(Clone, Debug, Default)]
+struct DyadicRows {
+    /// `16 w`, parallel to the table's weights (meaningful in dyadic rows only).
+    k: Vec<i8>,
+    /// Per row: whether it is dyadic.
+    ok: Vec<bool>,
+    /// The level's most common odd row ([`RowPattern`]) in sixteenths, if it is dyadic, and
+    /// per row whether the row is that pattern.
+    pattern: Option<(Vec<i64>, Vec<bool>)>,
+}
+
+impl DyadicRows {
+    fn new(t: &StencilTable) -> Self {
+        let k: Vec<i8> = t
+            .weights
+            .par_iter()
+            .with_min_len(CHUNK)
+            .map(|&w| {
+                let k = w * 16.0;
+                if k.fract() == 0.0 && k.abs() <= 16.0 {
+                    k as i8
+                } else {
+                    i8::MIN
+                }
+            })
+            .collect();
+        let ok = (0..t.len())
+            .into_par_iter()
+            .with_min_len(CHUNK)
+            .map(|r| {
+                let ks = &k[t.offsets[r] as usize..t.offsets[r + 1] as usize];
+                ks.iter().all(|&k| k != i8::MIN)
+                    && ks.iter().map(|&k| (k as i32).abs()).sum::<i32>() <= 32
+            })
+            .collect();
+        let p = RowPattern::new(t);
+        let pk: Vec<i64> = p.weights.iter().map(|&w| (w * 16.0) as i64).collect();
+        let dyadic_pattern = !pk.is_empty()
+            && p.weights
+                .iter()
+                .zip(&pk)
+                .all(|(&w, &k)| w * 16.0 == k as f64)
+            && pk.iter().all(|k| k.abs() <= 16)
+            && pk.iter().map(|k| k.abs()).sum::<i64>() <= 32;
+        DyadicRows {
+            k,
+            ok,
+            pattern: dyadic_pattern.then_some((pk, p.rows)),
+        }
+    }
+}
+
+/// `Σ k_i y[idx_i]` for a row of `M` entries (`None` if `k` or `idx` is not that long).
+#[inline(always)]
+fn idot<const M: usize>(k: &[i64], idx: &[u32], y: &[[i64; 3]]) -> Option<[i64; 3]> {
+    let (Ok(k), Ok(idx)) = (<&[i64; M]>::try_from(k), <&[u32; M]>::try_from(idx)) else {
+        return None;
+    };
+    let mut acc = [0i64; 3];
+    for i in 0..M {
+        let v = y[idx[i] as usize];
+        for q in 0..3 {
+            acc[q] += k[i] * v[q];
+        }
+    }
+    Some(acc)
+}
+
+/// Sources of the dyadic prediction lie in `[−2^DYADIC_BOUND, 2^DYADIC_BOUND)`.
+const DYADIC_BOUND: u32 = 47;
+
+/// Whether every value of `x` lies in `[−2^DYADIC_BOUND, 2^DYADIC_BOUND)`.
+fn all_small(x: &[[i64; 3]]) -> bool {
+    x.par_chunks(1 << 14).all(|c| {
+        let mut chk = 0u64;
+        for y in c {
+            for &v in y {
+                chk |= (v as u64).wrapping_add(1 << DYADIC_BOUND);
+            }
+        }
+        chk >> (DYADIC_BOUND + 1) == 0
+    })
 }
 
 impl<'h> IntTriangleWavelet<'h> {
@@ -120,16 +212,22 @@ impl<'h> IntTriangleWavelet<'h> {
                 }
             }
         }
-        Ok(IntTriangleWavelet {
+        Ok(Self::with_tables(h, stencils, lifted))
+    }
+
+    /// The wavelet of checked `tables`, with its plans.
+    fn with_tables(h: &'h Hierarchy, tables: Vec<StencilTable>, lifted: bool) -> Self {
+        IntTriangleWavelet {
             h,
-            tables: stencils,
+            dyadic: tables.iter().map(DyadicRows::new).collect(),
+            tables,
             update_plan: if lifted {
                 UpdatePlan::new(h)
             } else {
                 UpdatePlan::default()
             },
             lifted,
-        })
+        }
     }
 
     /// The hierarchy.
@@ -226,11 +324,41 @@ impl<'h> IntTriangleWavelet<'h> {
     fn predict(&self, level: usize, even: &[[i64; 3]], odd: &mut [[i64; 3]], sign: i64) {
         let t = &self.tables[level];
         let nc = even.len();
+        let dyadic = self.dyadic.get(level).filter(|d| {
+            d.k.len() == t.weights.len()
+                && d.ok.len() == t.len()
+                && d.pattern.as_ref().is_none_or(|p| p.1.len() == t.len())
+                && all_small(even)
+        });
         odd.par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
             let first = nc + c * CHUNK;
             for (i, x) in out.iter_mut().enumerate() {
                 let r = first + i;
                 let (a, b) = (t.offsets[r] as usize, t.offsets[r + 1] as usize);
+                let pattern = dyadic.and_then(|d| d.pattern.as_ref()).filter(|p| p.1[r]);
+                if let Some((pk, _)) = pattern {
+                    let idx = &t.indices[a..b];
+                    if let Some(acc) = idot::<8>(pk, idx, even).or_else(|| idot::<2>(pk, idx, even))
+                    {
+                        for q in 0..3 {
+                            x[q] += sign * ((acc[q] + 8) >> 4);
+                        }
+                        continue;
+                    }
+                }
+                if let Some(d) = dyadic.filter(|d| d.ok[r]) {
+                    let mut acc = [0i64; 3];
+                    for (&k, &w) in t.indices[a..b].iter().zip(&d.k[a..b]) {
+                        let y = even[k as usize];
+                        for q in 0..3 {
+                            acc[q] += w as i64 * y[q];
+                        }
+                    }
+                    for q in 0..3 {
+                        x[q] += sign * ((acc[q] + 8) >> 4);
+                    }
+                    continue;
+                }
                 let mut acc = [0.0f64; 3];
                 for (&k, &w) in t.indices[a..b].iter().zip(&t.weights[a..b]) {
                     let y = even[k as usize];
@@ -375,18 +503,56 @@ mod tests {
                     levels: h.levels() as u32,
                     ..Default::default()
                 };
-                let r = IntTriangleWavelet {
-                    h: &h,
-                    tables: Refinement::build(&h.base, &o, true).unwrap().stencils,
-                    update_plan: UpdatePlan::default(),
-                    lifted: w.lifted,
-                };
+                let mut r = IntTriangleWavelet::with_tables(
+                    &h,
+                    Refinement::build(&h.base, &o, true).unwrap().stencils,
+                    w.lifted,
+                );
+                // The update's fallback (no plan: edge-face lookups).
+                r.update_plan = UpdatePlan::default();
                 let (mut a, mut b) = (q.clone(), q.clone());
                 w.forward(&mut a).unwrap();
                 r.forward(&mut b).unwrap();
                 assert_eq!(a, b, "{name}");
                 if scheme == Scheme::Butterfly {
                     assert_eq!(w.tables, r.tables, "{name}");
+                }
+            }
+        }
+    }
+
+    /// The exact `i64` evaluation of dyadic rows gives the `f64` evaluation's values, on
+    /// smooth data, on random data and beyond `2^47` (where the `f64` path is taken).
+    #[test]
+    fn dyadic_rows_match_f64() {
+        let meshes = [
+            quantized(&generate::icosahedron(), 4, 16),
+            quantized(&generate::grid(3, 2, true), 3, 20),
+        ];
+        for (h, q) in &meshes {
+            let mut rng = Rng(9);
+            let random: Vec<[i64; 3]> = q
+                .iter()
+                .map(|_| [0; 3].map(|_: i64| (rng.next() % (1 << 41)) as i64 - (1 << 40)))
+                .collect();
+            let huge: Vec<[i64; 3]> = q.iter().map(|c| c.map(|x| x << 32)).collect();
+            for (name, w) in schemes(h) {
+                assert!(w.dyadic.iter().all(|d| d.ok.iter().any(|&ok| ok)), "{name}");
+                let mut plain = w.clone();
+                plain.dyadic.clear();
+                for input in [q, &random, &huge] {
+                    let (mut a, mut b) = (input.clone(), input.clone());
+                    (0..h.levels()).rev().for_each(|j| {
+                        w.forward_level(j, &mut a[..h.num_vertices(j + 1)]);
+                        plain.forward_level(j, &mut b[..h.num_vertices(j + 1)]);
+                    });
+                    assert_eq!(a, b, "{name} forward");
+                    (0..h.levels()).for_each(|j| {
+                        w.inverse_level(j, &mut a[..h.num_vertices(j + 1)]);
+                        plain.inverse_level(j, &mut b[..h.num_vertices(j + 1)]);
+                    });
+                    assert_eq!(a, b, "{name} inverse");
+                    assert_eq!(&a, input, "{name} lossless");
                 }
             }
         }
