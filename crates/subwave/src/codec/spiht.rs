@@ -348,6 +348,10 @@ pub struct Coefficients {
     pub width: Vec<u8>,
     /// Sign (true: negative).
     pub neg: Vec<bool>,
+    /// Per node: 1 + the plane in which its first component became significant, 0 while
+    /// none is (the significance contexts' "other component significant in an earlier
+    /// plane", one byte instead of three widths).
+    first: Vec<u8>,
 }
 
 impl Coefficients {
@@ -358,6 +362,7 @@ impl Coefficients {
             lo: vec![0; n],
             width: vec![INSIGNIFICANT; n],
             neg: vec![false; n],
+            first: vec![0; forest.num_nodes],
         }
     }
 
@@ -369,6 +374,7 @@ impl Coefficients {
                 self.width[e] = INSIGNIFICANT;
                 self.neg[e] = false;
             }
+            self.first[n] = 0;
         }
     }
 }
@@ -432,6 +438,20 @@ impl<'a> SpihtDecoder<'a> {
     /// division per entry, branch-free range decoding and refinement).
     #[inline(never)]
     fn decode_passes<const ON: bool>(&mut self, dec: &mut Decoder, out: &mut Coefficients) -> bool {
+        // The coder's state in locals (registers) for the whole pass, written back on return:
+        // through `dec`, every decision would store and reload it.
+        let mut d = *dec;
+        let done = self.decode_passes_with::<ON>(&mut d, out);
+        *dec = d;
+        done
+    }
+
+    #[inline(always)]
+    fn decode_passes_with<const ON: bool>(
+        &mut self,
+        dec: &mut Decoder,
+        out: &mut Coefficients,
+    ) -> bool {
         let n = self.lists.plane;
         if n < 0 {
             return false;
@@ -449,8 +469,13 @@ impl<'a> SpihtDecoder<'a> {
             sig, sign, refine, ..
         } = &mut l.ctx;
         let (sig, sign, refine) = (&mut sig[..], &mut sign[..], &mut refine[..]);
-        let Coefficients { lo, width, neg } = out;
-        let (lo, width, neg) = (&mut lo[..], &mut width[..], &mut neg[..]);
+        let Coefficients {
+            lo,
+            width,
+            neg,
+            first,
+        } = out;
+        let (lo, width, neg, first) = (&mut lo[..], &mut width[..], &mut neg[..], &mut first[..]);
         // One decision with context `ctx` (raw bit without contexts); stops the pass at the
         // first decision that needs a missing byte.
         macro_rules! decide {
@@ -462,18 +487,32 @@ impl<'a> SpihtDecoder<'a> {
                 b
             }};
         }
+        // A node with a component significant in an earlier plane has `first > n + 1`
+        // (entries found significant in this plane set `first = n + 1`).
+        let earlier = nb + 1;
         // The context row of node `node`'s significance tests: some component significant in
-        // an earlier plane (width > n; entries found significant in this plane have width n,
-        // refinement comes after sorting), and the level.
-        let sig_row = |width: &[u8], node: usize| -> (usize, usize) {
-            let w = &width[3 * node..3 * node + 3];
-            let earlier = |x: u8| x != INSIGNIFICANT && x > nb;
-            let other = earlier(w[0]) | earlier(w[1]) | earlier(w[2]);
-            (other as usize, (levels[node] as usize).min(CTX_LEVELS - 1))
+        // an earlier plane, and the level.
+        let sig_row = |first: &[u8], node: usize| -> (usize, usize) {
+            (
+                (first[node] > earlier) as usize,
+                (levels[node] as usize).min(CTX_LEVELS - 1),
+            )
         };
         let sig_at = |test: Test, other: usize, c: usize, lv: usize| {
             (((test as usize) * 2 + other) * 3 + c) * CTX_LEVELS + lv
         };
+        // Entry `e` of node `node` became significant with sign `s`.
+        macro_rules! significant {
+            ($e:expr, $node:expr, $s:expr, $ci:expr) => {{
+                let (e, node) = ($e, $node);
+                lo[e] = thr;
+                width[e] = nb;
+                neg[e] = $s;
+                first[node] = first[node].max(earlier);
+                l.lsc.push(e as u32);
+                lsc_ctx.push($ci as u8);
+            }};
+        }
         // LIC.
         let mut kept = 0;
         for idx in 0..l.lic.len() {
@@ -481,14 +520,11 @@ impl<'a> SpihtDecoder<'a> {
             let node = e / 3;
             let c = e - 3 * node;
             if active[c] {
-                let (other, lv) = sig_row(width, node);
+                let (other, lv) = sig_row(first, node);
                 if decide!(&mut sig[sig_at(Test::Lic, other, c, lv)]) {
-                    let s = decide!(&mut sign[c * CTX_LEVELS + lv]);
-                    lo[e] = thr;
-                    width[e] = nb;
-                    neg[e] = s;
-                    l.lsc.push(e as u32);
-                    lsc_ctx.push((c * CTX_LEVELS + lv) as u8);
+                    let ci = c * CTX_LEVELS + lv;
+                    let s = decide!(&mut sign[ci]);
+                    significant!(e, node, s, ci);
                     continue;
                 }
             }
@@ -507,20 +543,17 @@ impl<'a> SpihtDecoder<'a> {
             let c = e - 3 * node;
             let mut keep = true;
             if active[c] {
-                let (other, lv) = sig_row(width, node);
+                let (other, lv) = sig_row(first, node);
                 if entry & TYPE_B == 0 {
                     if decide!(&mut sig[sig_at(Test::SetA, other, c, lv)]) {
                         for &k in forest.offspring(node) {
                             let k = k as usize;
                             let ke = 3 * k + c;
-                            let (other, lv) = sig_row(width, k);
+                            let (other, lv) = sig_row(first, k);
                             if decide!(&mut sig[sig_at(Test::Offspring, other, c, lv)]) {
-                                let s = decide!(&mut sign[c * CTX_LEVELS + lv]);
-                                lo[ke] = thr;
-                                width[ke] = nb;
-                                neg[ke] = s;
-                                l.lsc.push(ke as u32);
-                                lsc_ctx.push((c * CTX_LEVELS + lv) as u8);
+                                let ci = c * CTX_LEVELS + lv;
+                                let s = decide!(&mut sign[ci]);
+                                significant!(ke, k, s, ci);
                             } else {
                                 l.lic.push(ke as u32);
                             }
