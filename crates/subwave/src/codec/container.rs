@@ -172,7 +172,7 @@ pub fn crc32(data: &[u8]) -> u32 {
     static TABLES: std::sync::OnceLock<[[u32; 256]; 8]> = std::sync::OnceLock::new();
     let t = TABLES.get_or_init(|| {
         let mut t = [[0u32; 256]; 8];
-        for i in 0..256 {
+        for (i, x) in t[0].iter_mut().enumerate() {
             let mut c = i as u32;
             for _ in 0..8 {
                 c = if c & 1 != 0 {
@@ -181,12 +181,12 @@ pub fn crc32(data: &[u8]) -> u32 {
                     c >> 1
                 };
             }
-            t[0][i] = c;
+            *x = c;
         }
         for k in 1..8 {
-            for i in 0..256 {
-                let p = t[k - 1][i];
-                t[k][i] = (p >> 8) ^ t[0][(p & 0xFF) as usize];
+            let (done, rest) = t.split_at_mut(k);
+            for (x, &p) in rest[0].iter_mut().zip(&done[k - 1]) {
+                *x = (p >> 8) ^ done[0][(p & 0xFF) as usize];
             }
         }
         t
