@@ -73,7 +73,9 @@ use super::forest::Forest;
 use super::lossless;
 use super::quantize::{self, ComponentMode, Grid};
 use super::rangecoder::{Bit, Decoder, Encoder, SInt, UInt};
-use super::spiht::{self, Coefficients, Magnitudes, SpihtDecoder, SpihtEncoder, INSIGNIFICANT};
+use super::spiht::{
+    self, Coefficients, Magnitudes, SpihtDecoder, SpihtEncoder, SpihtMemory, INSIGNIFICANT,
+};
 use crate::hierarchy::Hierarchy;
 use crate::mesh::Mesh;
 use crate::subdivision::refine::{child_faces, Split};
@@ -243,6 +245,17 @@ pub struct DecodeOptions {
     /// Trees layout: decode only these trees (others keep zero details). Ignored by the
     /// embedded layout.
     pub trees: Option<Vec<u32>>,
+}
+
+/// Working memory of [`decode_with`] kept from one decode to the next: a client that decodes
+/// repeatedly (a progressive viewer decoding each longer prefix of a stream as it arrives, or
+/// many streams in turn) keeps one and saves allocating and faulting in the coefficient
+/// decoder's memory each time. Its contents never carry over: the result of a decode does
+/// not depend on the buffers' history.
+#[derive(Clone, Debug, Default)]
+pub struct DecodeBuffers {
+    coefficients: Coefficients,
+    spiht: SpihtMemory,
 }
 
 /// A decoded mesh and what was used.
@@ -1230,13 +1243,29 @@ fn setup_forest(p: &Parsed, hierarchy: &Hierarchy) -> Result<Forest> {
 /// index and base chunk, a chunk failing its checksum (named), declared sizes out of
 /// proportion to the stream, a corrupt base mesh.
 pub fn decode(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
+    decode_with(bytes, opts, &mut DecodeBuffers::default())
+}
+
+/// [`decode`] in the working memory `buffers` (same result, see [`DecodeBuffers`]).
+///
+/// # Errors
+/// As [`decode`].
+pub fn decode_with(
+    bytes: &[u8],
+    opts: &DecodeOptions,
+    buffers: &mut DecodeBuffers,
+) -> Result<Decoded> {
     // Run on a worker of the thread pool: the parallel steps inside then share work by
     // stealing instead of each being injected into the pool from outside (a wake-up and a
     // wait per step).
-    rayon::scope(|_| decode_in_pool(bytes, opts))
+    rayon::scope(|_| decode_in_pool(bytes, opts, buffers))
 }
 
-fn decode_in_pool(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
+fn decode_in_pool(
+    bytes: &[u8],
+    opts: &DecodeOptions,
+    buffers: &mut DecodeBuffers,
+) -> Result<Decoded> {
     let available = bytes.len();
     let limit = opts.max_bytes.map_or(available, |m| m.min(available));
     let bytes = &bytes[..limit];
@@ -1275,7 +1304,7 @@ fn decode_in_pool(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
     let (coded, (t, finest, buffer)) = rayon::join(
         || -> Result<_> {
             let forest = setup_forest(&p, &hierarchy)?;
-            let coded = decode_coefficients(&p, &forest, bytes, opts)?;
+            let coded = decode_coefficients(&p, &forest, bytes, opts, buffers)?;
             Ok((forest, coded))
         },
         || {
@@ -1302,7 +1331,9 @@ fn decode_in_pool(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
         &coefs,
         &t?,
         buffer,
-    )?;
+    );
+    buffers.coefficients = coefs;
+    let positions = positions?;
     let (face_offsets, face_indices) = finest;
     let mesh = Mesh {
         positions,
@@ -1326,9 +1357,11 @@ fn decode_coefficients(
     forest: &Forest,
     bytes: &[u8],
     opts: &DecodeOptions,
+    buffers: &mut DecodeBuffers,
 ) -> Result<(Coefficients, usize, u32, u32, bool)> {
     let limit = bytes.len();
-    let mut coefs = Coefficients::new(forest);
+    let mut coefs = std::mem::take(&mut buffers.coefficients);
+    coefs.reset(forest);
     let contexts = p.flags & F_CONTEXTS != 0;
     let planes = spiht::num_planes(p.top);
     let mut planes_complete = planes;
@@ -1337,7 +1370,8 @@ fn decode_coefficients(
     match p.layout {
         Layout::Embedded => {
             let roots: Vec<u32> = (0..forest.num_trees as u32).collect();
-            let mut d = SpihtDecoder::new(forest, &roots, p.top, contexts);
+            let memory = std::mem::take(&mut buffers.spiht);
+            let mut d = SpihtDecoder::in_memory(forest, &roots, p.top, contexts, memory);
             let mut i = 1;
             while d.plane() >= 0 {
                 let Some(e) = p.c.chunks.get(i) else {
@@ -1364,6 +1398,7 @@ fn decode_coefficients(
                 planes_complete = (planes as i32 - 1 - d.plane()).max(0) as u32;
                 complete = false;
             }
+            buffers.spiht = d.into_memory();
         }
         Layout::Trees => {
             let wanted = opts.trees.as_ref().map(|t| {

@@ -166,8 +166,25 @@ struct Lists {
 
 impl Lists {
     fn new(forest: &Forest, roots: &[u32], top: [i32; 3], contexts: bool) -> Lists {
-        let mut lic = Vec::with_capacity(roots.len() * 3);
-        let mut lis = Vec::with_capacity(roots.len() * 3);
+        let lists = (
+            Vec::with_capacity(roots.len() * 3),
+            Vec::with_capacity(roots.len() * 3),
+            Vec::new(),
+        );
+        Lists::in_memory(forest, roots, top, contexts, lists)
+    }
+
+    /// [`Lists::new`] in the memory of the (cleared) vectors `lists` (LIC, LIS, LSC).
+    fn in_memory(
+        forest: &Forest,
+        roots: &[u32],
+        top: [i32; 3],
+        contexts: bool,
+        (mut lic, mut lis, mut lsc): (Vec<u32>, Vec<u32>, Vec<u32>),
+    ) -> Lists {
+        lic.clear();
+        lis.clear();
+        lsc.clear();
         for &r in roots {
             for c in 0..3u32 {
                 lic.push(3 * r + c);
@@ -179,7 +196,7 @@ impl Lists {
         Lists {
             lic,
             lis,
-            lsc: Vec::new(),
+            lsc,
             plane: top.iter().copied().max().unwrap_or(-1),
             top,
             ctx: Contexts::new(contexts),
@@ -340,7 +357,7 @@ impl<'a> SpihtEncoder<'a> {
 
 /// The decoder's knowledge of every coefficient entry: magnitude interval `[lo, lo + 2^w)`
 /// (`w = INSIGNIFICANT` while not significant) and sign.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct Coefficients {
     /// Lower end of the magnitude interval.
     pub lo: Vec<u32>,
@@ -366,6 +383,19 @@ impl Coefficients {
         }
     }
 
+    /// [`Coefficients::new`] in this value's memory: every entry of `forest` insignificant.
+    pub fn reset(&mut self, forest: &Forest) {
+        let n = 3 * forest.num_nodes;
+        self.lo.clear();
+        self.lo.resize(n, 0);
+        self.width.clear();
+        self.width.resize(n, INSIGNIFICANT);
+        self.neg.clear();
+        self.neg.resize(n, false);
+        self.first.clear();
+        self.first.resize(forest.num_nodes, 0);
+    }
+
     /// Resets the entries of the nodes in `nodes` to insignificant (removing a tree).
     pub fn clear_nodes(&mut self, nodes: impl Iterator<Item = usize>) {
         for n in nodes {
@@ -388,11 +418,40 @@ pub struct SpihtDecoder<'a> {
     lsc_ctx: Vec<u8>,
 }
 
+/// The list memory of a [`SpihtDecoder`], handed from one decoder to the next
+/// ([`SpihtDecoder::in_memory`], [`SpihtDecoder::into_memory`]) so that repeated decodes do
+/// not allocate (and fault in) their lists again.
+#[derive(Clone, Debug, Default)]
+pub struct SpihtMemory {
+    lic: Vec<u32>,
+    lis: Vec<u32>,
+    lsc: Vec<u32>,
+    lsc_ctx: Vec<u8>,
+}
+
 impl<'a> SpihtDecoder<'a> {
     /// A decoder of the trees rooted at `roots`, with the stream's top planes.
     pub fn new(forest: &'a Forest, roots: &[u32], top: [i32; 3], contexts: bool) -> Self {
-        let mut lists = Lists::new(forest, roots, top, contexts);
-        let mut lsc_ctx = Vec::new();
+        Self::in_memory(forest, roots, top, contexts, SpihtMemory::default())
+    }
+
+    /// [`SpihtDecoder::new`] with its lists in `memory` (whatever they held is dropped;
+    /// their capacity is kept).
+    pub fn in_memory(
+        forest: &'a Forest,
+        roots: &[u32],
+        top: [i32; 3],
+        contexts: bool,
+        memory: SpihtMemory,
+    ) -> Self {
+        let SpihtMemory {
+            lic,
+            lis,
+            lsc,
+            mut lsc_ctx,
+        } = memory;
+        let mut lists = Lists::in_memory(forest, roots, top, contexts, (lic, lis, lsc));
+        lsc_ctx.clear();
         if roots.len() == forest.num_trees {
             // The whole forest: reserve the lists' largest sizes once (address space only;
             // no copies while they grow).
@@ -412,6 +471,16 @@ impl<'a> SpihtDecoder<'a> {
     /// The plane the next [`SpihtDecoder::decode_plane`] decodes (−1 when done).
     pub fn plane(&self) -> i32 {
         self.lists.plane
+    }
+
+    /// The decoder's list memory, for the next decoder ([`SpihtDecoder::in_memory`]).
+    pub fn into_memory(self) -> SpihtMemory {
+        SpihtMemory {
+            lic: self.lists.lic,
+            lis: self.lists.lis,
+            lsc: self.lists.lsc,
+            lsc_ctx: self.lsc_ctx,
+        }
     }
 
     /// Decodes the current plane into `out`. Returns `false` if the stream ended before the
