@@ -210,7 +210,7 @@ pub struct BenchDecodeArgs {
     #[arg(long, value_name = "K", default_value_t = 11,
           value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub runs: u32,
-    /// Print JSON (keys decode_ms, vertices, faces, bytes, runs, min_ms).
+    /// Print JSON (keys decode_ms (decodes reusing their buffers), fresh_decode_ms (allocating afresh), vertices, faces, bytes, runs, min_ms).
     #[arg(long)]
     pub json: bool,
 }

@@ -156,6 +156,55 @@ impl Hierarchy {
         })
     }
 
+    /// [`Hierarchy::skeleton`] without the finest level's faces: level `L` is only its vertex
+    /// count and face arity (a decoder builds its faces apart, [`child_faces`] of level
+    /// `L − 1`, in parallel with the work that needs the coarse levels only).
+    ///
+    /// # Errors
+    /// As [`Hierarchy::new`].
+    pub(crate) fn skeleton_without_finest_faces(
+        base: &Mesh,
+        levels: u32,
+        split: Split,
+    ) -> Result<Hierarchy> {
+        if levels == 0 {
+            return Self::skeleton(base, 0, split);
+        }
+        // The checks of `levels` levels first (the face limit), then the coarse levels.
+        let faces_out = match split {
+            Split::Triangles | Split::QuadTri => {
+                (base.num_faces() as u64).saturating_mul(4u64.saturating_pow(levels))
+            }
+            Split::Polygons => (base.face_indices.len() as u64)
+                .saturating_mul(4u64.saturating_pow(levels.saturating_sub(1))),
+        };
+        if faces_out > MAX_FACES {
+            return Err(Error::InvalidArgument(format!(
+                "{levels} levels on {} faces would make {faces_out} faces, more than the {MAX_FACES} supported; use fewer levels",
+                base.num_faces()
+            )));
+        }
+        let mut topologies = Self::checked_topologies(base, levels - 1, split, false)?;
+        let parent = topologies.last().unwrap();
+        let finest = Topology {
+            num_vertices: child_vertex_count(parent, split) as u32,
+            face_arity: match split {
+                _ if parent.num_faces() == 0 => 0,
+                Split::Triangles => 3,
+                Split::Polygons => 4,
+                Split::QuadTri => 0,
+            },
+            ..Topology::default()
+        };
+        topologies.push(finest);
+        Ok(Hierarchy {
+            split,
+            base: base.clone(),
+            topologies,
+            positions: Vec::new(),
+        })
+    }
+
     /// The level topologies of `base` split `levels` times, after the checks of
     /// [`Hierarchy::new`]; with `faces_only_finest`, the finest level holds its faces only
     /// (see [`Hierarchy::skeleton`]).
@@ -835,6 +884,43 @@ fn coarsen(nv: usize, faces: &[[u32; 3]], step: usize) -> Result<(Vec<[u32; 3]>,
 mod tests {
     use super::*;
     use crate::generate;
+
+    /// The skeleton without the finest faces equals the skeleton but for those faces, which
+    /// are `child_faces` of its level `L − 1`; the face limit is checked the same way.
+    #[test]
+    fn skeleton_without_finest_faces_equals_the_skeleton() {
+        let cases = [
+            (generate::icosahedron(), Split::Triangles),
+            (generate::grid(3, 2, true), Split::Triangles),
+            (generate::cube(), Split::Polygons),
+        ];
+        for (base, split) in cases {
+            for levels in 0..4 {
+                let s = Hierarchy::skeleton(&base, levels, split).unwrap();
+                let d = Hierarchy::skeleton_without_finest_faces(&base, levels, split).unwrap();
+                let l = levels as usize;
+                // (Topology has no PartialEq: its Debug form lists every table.)
+                let coarse = |h: &Hierarchy| format!("{:?}", &h.topologies[..l]);
+                assert_eq!(coarse(&s), coarse(&d), "{split:?} {levels}");
+                let (sf, df) = (&s.topologies[l], &d.topologies[l]);
+                assert_eq!(
+                    (sf.num_vertices, sf.face_arity),
+                    (df.num_vertices, df.face_arity)
+                );
+                if levels > 0 {
+                    assert!(df.face_vertices.is_empty());
+                    let (o, v) = child_faces(&d.topologies[l - 1], split);
+                    assert_eq!((&o, &v), (&sf.face_offsets, &sf.face_vertices));
+                }
+            }
+        }
+        let too_many = Hierarchy::skeleton_without_finest_faces(
+            &generate::icosahedron(),
+            14,
+            Split::Triangles,
+        );
+        assert!(matches!(too_many, Err(Error::InvalidArgument(_))));
+    }
 
     /// A tiny deterministic generator (SplitMix64).
     pub(crate) struct Rng(pub u64);

@@ -1,8 +1,8 @@
 //! End-to-end tests of the progressive geometry codec (`codec::progressive`).
 
 use subwave::codec::progressive::{
-    decode, encode, encode_with_info, inspect, DecodeOptions, EncodeOptions, Layout, TreeDecoder,
-    Wavelet,
+    decode, decode_with, encode, encode_with_info, inspect, DecodeBuffers, DecodeOptions,
+    EncodeOptions, Layout, TreeDecoder, Wavelet,
 };
 use subwave::codec::quantize::ComponentMode;
 use subwave::generate;
@@ -109,6 +109,56 @@ fn prefixes_improve_and_all_prefixes_of_a_small_stream_decode() {
     assert!(errors[errors.len() - 1] < errors[0] / 20.0, "{errors:?}");
     let quarter = errors[errors.len() / 4];
     assert!(quarter < errors[0] && errors[errors.len() * 3 / 4] < quarter);
+}
+
+/// Decodes in one kept `DecodeBuffers` equal fresh decodes, whatever the buffers decoded
+/// before: streams of different sizes and kinds (larger, smaller, lossless, quads, trees
+/// layout) and prefixes, in an order that shrinks and grows the buffers.
+#[test]
+fn decodes_in_kept_buffers_equal_fresh_decodes() {
+    let big = encode(&bumpy(3), &EncodeOptions::default()).unwrap();
+    let small = encode(&bumpy(1), &EncodeOptions::default()).unwrap();
+    let lossless = encode(
+        &bumpy(2),
+        &EncodeOptions {
+            lossless: true,
+            ..EncodeOptions::default()
+        },
+    )
+    .unwrap();
+    let quads = Hierarchy::new(&generate::cube(), 3, Split::Polygons, None).unwrap();
+    let quads = encode(&quads, &EncodeOptions::for_hierarchy(&quads)).unwrap();
+    let trees = encode(
+        &bumpy(2),
+        &EncodeOptions {
+            layout: Layout::Trees,
+            ..EncodeOptions::default()
+        },
+    )
+    .unwrap();
+    let mut buffers = DecodeBuffers::default();
+    let streams = [&big, &small, &lossless, &big, &quads, &trees, &small, &big];
+    for (i, s) in streams.into_iter().enumerate() {
+        for cut in [s.len(), s.len() * 2 / 3, s.len() / 2, s.len()] {
+            let opts = DecodeOptions {
+                max_bytes: Some(cut),
+                trees: None,
+            };
+            let (a, b) = (decode(s, &opts), decode_with(s, &opts, &mut buffers));
+            match (a, b) {
+                (Ok(a), Ok(b)) => {
+                    assert_eq!(a.mesh.positions, b.mesh.positions, "stream {i} cut {cut}");
+                    assert_eq!(a.mesh.face_indices, b.mesh.face_indices);
+                    assert_eq!(
+                        (a.bytes_used, a.planes_complete, a.complete),
+                        (b.bytes_used, b.planes_complete, b.complete)
+                    );
+                }
+                (Err(a), Err(b)) => assert_eq!(a.to_string(), b.to_string()),
+                (a, b) => panic!("stream {i} cut {cut}: {a:?} vs {b:?}"),
+            }
+        }
+    }
 }
 
 #[test]

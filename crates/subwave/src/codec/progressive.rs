@@ -73,10 +73,12 @@ use super::forest::Forest;
 use super::lossless;
 use super::quantize::{self, ComponentMode, Grid};
 use super::rangecoder::{Bit, Decoder, Encoder, SInt, UInt};
-use super::spiht::{self, Coefficients, Magnitudes, SpihtDecoder, SpihtEncoder, INSIGNIFICANT};
+use super::spiht::{
+    self, Coefficients, Magnitudes, SpihtDecoder, SpihtEncoder, SpihtMemory, INSIGNIFICANT,
+};
 use crate::hierarchy::Hierarchy;
 use crate::mesh::Mesh;
-use crate::subdivision::refine::Split;
+use crate::subdivision::refine::{child_faces, Split};
 use crate::subdivision::{Scheme, SubdivideOptions};
 use crate::topology::Topology;
 use crate::wavelet::bertram::{BSplineWavelet, Degree};
@@ -243,6 +245,17 @@ pub struct DecodeOptions {
     /// Trees layout: decode only these trees (others keep zero details). Ignored by the
     /// embedded layout.
     pub trees: Option<Vec<u32>>,
+}
+
+/// Working memory of [`decode_with`] kept from one decode to the next: a client that decodes
+/// repeatedly (a progressive viewer decoding each longer prefix of a stream as it arrives, or
+/// many streams in turn) keeps one and saves allocating and faulting in the coefficient
+/// decoder's memory each time. Its contents never carry over: the result of a decode does
+/// not depend on the buffers' history.
+#[derive(Clone, Debug, Default)]
+pub struct DecodeBuffers {
+    coefficients: Coefficients,
+    spiht: SpihtMemory,
 }
 
 /// A decoded mesh and what was used.
@@ -1139,9 +1152,9 @@ fn setup(p: &Parsed, bytes: &[u8]) -> Result<Setup> {
 /// The base mesh and hierarchy of a stream (see [`Setup`]).
 type Base = (Hierarchy, Vec<[i64; 3]>, Vec<DVec3>);
 
-/// The hierarchy, integer base coefficients and base positions of a stream ([`Setup`]
-/// without the forest).
-fn setup_base(p: &Parsed, bytes: &[u8]) -> Result<Base> {
+/// The base mesh of a stream (positions dequantized in lossy mode) and its integer
+/// coefficients (lossless mode without the base-mesh coder).
+fn setup_base_mesh(p: &Parsed, bytes: &[u8]) -> Result<(Mesh, Vec<[i64; 3]>)> {
     let h = &p.c.header;
     let (data, complete) = p.c.chunk(bytes, 0)?;
     let off = p.c.chunks[0].offset as usize;
@@ -1185,10 +1198,21 @@ fn setup_base(p: &Parsed, bytes: &[u8]) -> Result<Base> {
         }
         (m, q)
     };
+    Ok((base, base_q))
+}
+
+/// The hierarchy, integer base coefficients and base positions of a stream ([`Setup`]
+/// without the forest).
+fn setup_base(p: &Parsed, bytes: &[u8]) -> Result<Base> {
+    let (base, base_q) = setup_base_mesh(p, bytes)?;
     let base_positions = base.positions.clone();
     // Connectivity only: the decoder never reads the finest level's edge and vertex tables.
-    let hierarchy = Hierarchy::skeleton(&base, h.levels as u32, p.split)
-        .map_err(|e| derr(off, format!("base mesh chunk: {e}")))?;
+    let hierarchy = Hierarchy::skeleton(&base, p.c.header.levels as u32, p.split).map_err(|e| {
+        derr(
+            p.c.chunks[0].offset as usize,
+            format!("base mesh chunk: {e}"),
+        )
+    })?;
     Ok((hierarchy, base_q, base_positions))
 }
 
@@ -1219,13 +1243,29 @@ fn setup_forest(p: &Parsed, hierarchy: &Hierarchy) -> Result<Forest> {
 /// index and base chunk, a chunk failing its checksum (named), declared sizes out of
 /// proportion to the stream, a corrupt base mesh.
 pub fn decode(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
+    decode_with(bytes, opts, &mut DecodeBuffers::default())
+}
+
+/// [`decode`] in the working memory `buffers` (same result, see [`DecodeBuffers`]).
+///
+/// # Errors
+/// As [`decode`].
+pub fn decode_with(
+    bytes: &[u8],
+    opts: &DecodeOptions,
+    buffers: &mut DecodeBuffers,
+) -> Result<Decoded> {
     // Run on a worker of the thread pool: the parallel steps inside then share work by
     // stealing instead of each being injected into the pool from outside (a wake-up and a
     // wait per step).
-    rayon::scope(|_| decode_in_pool(bytes, opts))
+    rayon::scope(|_| decode_in_pool(bytes, opts, buffers))
 }
 
-fn decode_in_pool(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
+fn decode_in_pool(
+    bytes: &[u8],
+    opts: &DecodeOptions,
+    buffers: &mut DecodeBuffers,
+) -> Result<Decoded> {
     let available = bytes.len();
     let limit = opts.max_bytes.map_or(available, |m| m.min(available));
     let bytes = &bytes[..limit];
@@ -1246,16 +1286,42 @@ fn decode_in_pool(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
             complete: d.complete,
         });
     }
-    let (hierarchy, base_q, base_positions) = setup_base(&p, bytes)?;
-    // The forest and coefficients on one side, the synthesis tables on the other: they are
-    // independent, so they are built in parallel.
-    let (coded, t) = rayon::join(
+    let (base, base_q) = setup_base_mesh(&p, bytes)?;
+    let levels = p.c.header.levels as u32;
+    // The coarse levels only: the finest faces are only the output's.
+    let hierarchy =
+        Hierarchy::skeleton_without_finest_faces(&base, levels, p.split).map_err(|e| {
+            derr(
+                p.c.chunks[0].offset as usize,
+                format!("base mesh chunk: {e}"),
+            )
+        })?;
+    let base_positions = base.positions;
+    // The forest and coefficients on one side (the longest chain); on the other the synthesis
+    // tables, the finest faces and the positions' buffer (its pages touched here, off the
+    // critical path): they are independent, so they are built in parallel.
+    let num_vertices = hierarchy.num_vertices(hierarchy.levels());
+    let (coded, (t, finest, buffer)) = rayon::join(
         || -> Result<_> {
             let forest = setup_forest(&p, &hierarchy)?;
-            let coded = decode_coefficients(&p, &forest, bytes, opts)?;
+            let coded = decode_coefficients(&p, &forest, bytes, opts, buffers)?;
             Ok((forest, coded))
         },
-        || transform(&p, &hierarchy),
+        || {
+            let t = transform(&p, &hierarchy);
+            let finest = match hierarchy.topologies.len() {
+                n if n >= 2 => child_faces(&hierarchy.topologies[n - 2], p.split),
+                _ => (base.face_offsets, base.face_indices),
+            };
+            let buffer = if p.flags & F_LOSSLESS == 0 {
+                let mut b = Vec::with_capacity(num_vertices);
+                b.resize(num_vertices, DVec3::ZERO);
+                b
+            } else {
+                Vec::new()
+            };
+            (t, finest, buffer)
+        },
     );
     let (forest, (coefs, used, planes_complete, planes, complete)) = coded?;
     let positions = reconstruct_with(
@@ -1264,14 +1330,15 @@ fn decode_in_pool(bytes: &[u8], opts: &DecodeOptions) -> Result<Decoded> {
         forest.num_nodes,
         &coefs,
         &t?,
-    )?;
-    // The finest faces move into the mesh (the hierarchy is not used again).
-    let mut hier = hierarchy;
-    let finest = hier.topologies.pop().unwrap_or_default();
+        buffer,
+    );
+    buffers.coefficients = coefs;
+    let positions = positions?;
+    let (face_offsets, face_indices) = finest;
     let mesh = Mesh {
         positions,
-        face_offsets: finest.face_offsets,
-        face_indices: finest.face_vertices,
+        face_offsets,
+        face_indices,
         ..Mesh::new()
     };
     Ok(Decoded {
@@ -1290,9 +1357,11 @@ fn decode_coefficients(
     forest: &Forest,
     bytes: &[u8],
     opts: &DecodeOptions,
+    buffers: &mut DecodeBuffers,
 ) -> Result<(Coefficients, usize, u32, u32, bool)> {
     let limit = bytes.len();
-    let mut coefs = Coefficients::new(forest);
+    let mut coefs = std::mem::take(&mut buffers.coefficients);
+    coefs.reset(forest);
     let contexts = p.flags & F_CONTEXTS != 0;
     let planes = spiht::num_planes(p.top);
     let mut planes_complete = planes;
@@ -1301,7 +1370,8 @@ fn decode_coefficients(
     match p.layout {
         Layout::Embedded => {
             let roots: Vec<u32> = (0..forest.num_trees as u32).collect();
-            let mut d = SpihtDecoder::new(forest, &roots, p.top, contexts);
+            let memory = std::mem::take(&mut buffers.spiht);
+            let mut d = SpihtDecoder::in_memory(forest, &roots, p.top, contexts, memory);
             let mut i = 1;
             while d.plane() >= 0 {
                 let Some(e) = p.c.chunks.get(i) else {
@@ -1328,6 +1398,7 @@ fn decode_coefficients(
                 planes_complete = (planes as i32 - 1 - d.plane()).max(0) as u32;
                 complete = false;
             }
+            buffers.spiht = d.into_memory();
         }
         Layout::Trees => {
             let wanted = opts.trees.as_ref().map(|t| {
@@ -1413,6 +1484,7 @@ fn reconstruct(p: &Parsed, s: &Setup, coefs: &Coefficients) -> Result<Mesh> {
         s.forest.num_nodes,
         coefs,
         &transform(p, &s.hierarchy)?,
+        Vec::new(),
     )?;
     let hier = &s.hierarchy;
     Ok(hier.level_mesh(hier.levels(), positions))
@@ -1420,13 +1492,15 @@ fn reconstruct(p: &Parsed, s: &Setup, coefs: &Coefficients) -> Result<Mesh> {
 
 /// The finest positions from the coefficients of the `num_nodes` forest nodes, the base
 /// (integer base coefficients in lossless mode, base positions otherwise; [`Setup`]) and
-/// the inverse transform.
+/// the inverse transform. `buffer` is the memory of the result (any contents; its capacity
+/// is used if it suffices).
 fn reconstruct_with(
     p: &Parsed,
     (base_q, base_positions): (&[[i64; 3]], &[DVec3]),
     num_nodes: usize,
     coefs: &Coefficients,
     t: &AnyTransform,
+    buffer: Vec<DVec3>,
 ) -> Result<Vec<DVec3>> {
     let h = &p.c.header;
     let v0 = base_positions.len().max(base_q.len());
@@ -1455,7 +1529,9 @@ fn reconstruct_with(
             data.iter().map(|&q| grid.dequantize(q)).collect()
         }
         AnyTransform::Float(t) => {
-            let mut flat = Vec::with_capacity(v0 + num_nodes);
+            let mut flat = buffer;
+            flat.clear();
+            flat.reserve(v0 + num_nodes);
             flat.extend_from_slice(base_positions);
             flat.par_extend((0..num_nodes).into_par_iter().with_min_len(8192).map(|n| {
                 let mut d = DVec3::ZERO;

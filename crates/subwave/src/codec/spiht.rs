@@ -166,8 +166,25 @@ struct Lists {
 
 impl Lists {
     fn new(forest: &Forest, roots: &[u32], top: [i32; 3], contexts: bool) -> Lists {
-        let mut lic = Vec::with_capacity(roots.len() * 3);
-        let mut lis = Vec::with_capacity(roots.len() * 3);
+        let lists = (
+            Vec::with_capacity(roots.len() * 3),
+            Vec::with_capacity(roots.len() * 3),
+            Vec::new(),
+        );
+        Lists::in_memory(forest, roots, top, contexts, lists)
+    }
+
+    /// [`Lists::new`] in the memory of the (cleared) vectors `lists` (LIC, LIS, LSC).
+    fn in_memory(
+        forest: &Forest,
+        roots: &[u32],
+        top: [i32; 3],
+        contexts: bool,
+        (mut lic, mut lis, mut lsc): (Vec<u32>, Vec<u32>, Vec<u32>),
+    ) -> Lists {
+        lic.clear();
+        lis.clear();
+        lsc.clear();
         for &r in roots {
             for c in 0..3u32 {
                 lic.push(3 * r + c);
@@ -179,7 +196,7 @@ impl Lists {
         Lists {
             lic,
             lis,
-            lsc: Vec::new(),
+            lsc,
             plane: top.iter().copied().max().unwrap_or(-1),
             top,
             ctx: Contexts::new(contexts),
@@ -340,7 +357,7 @@ impl<'a> SpihtEncoder<'a> {
 
 /// The decoder's knowledge of every coefficient entry: magnitude interval `[lo, lo + 2^w)`
 /// (`w = INSIGNIFICANT` while not significant) and sign.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct Coefficients {
     /// Lower end of the magnitude interval.
     pub lo: Vec<u32>,
@@ -348,6 +365,10 @@ pub struct Coefficients {
     pub width: Vec<u8>,
     /// Sign (true: negative).
     pub neg: Vec<bool>,
+    /// Per node: 1 + the plane in which its first component became significant, 0 while
+    /// none is (the significance contexts' "other component significant in an earlier
+    /// plane", one byte instead of three widths).
+    first: Vec<u8>,
 }
 
 impl Coefficients {
@@ -358,7 +379,21 @@ impl Coefficients {
             lo: vec![0; n],
             width: vec![INSIGNIFICANT; n],
             neg: vec![false; n],
+            first: vec![0; forest.num_nodes],
         }
+    }
+
+    /// [`Coefficients::new`] in this value's memory: every entry of `forest` insignificant.
+    pub fn reset(&mut self, forest: &Forest) {
+        let n = 3 * forest.num_nodes;
+        self.lo.clear();
+        self.lo.resize(n, 0);
+        self.width.clear();
+        self.width.resize(n, INSIGNIFICANT);
+        self.neg.clear();
+        self.neg.resize(n, false);
+        self.first.clear();
+        self.first.resize(forest.num_nodes, 0);
     }
 
     /// Resets the entries of the nodes in `nodes` to insignificant (removing a tree).
@@ -369,6 +404,7 @@ impl Coefficients {
                 self.width[e] = INSIGNIFICANT;
                 self.neg[e] = false;
             }
+            self.first[n] = 0;
         }
     }
 }
@@ -382,11 +418,40 @@ pub struct SpihtDecoder<'a> {
     lsc_ctx: Vec<u8>,
 }
 
+/// The list memory of a [`SpihtDecoder`], handed from one decoder to the next
+/// ([`SpihtDecoder::in_memory`], [`SpihtDecoder::into_memory`]) so that repeated decodes do
+/// not allocate (and fault in) their lists again.
+#[derive(Clone, Debug, Default)]
+pub struct SpihtMemory {
+    lic: Vec<u32>,
+    lis: Vec<u32>,
+    lsc: Vec<u32>,
+    lsc_ctx: Vec<u8>,
+}
+
 impl<'a> SpihtDecoder<'a> {
     /// A decoder of the trees rooted at `roots`, with the stream's top planes.
     pub fn new(forest: &'a Forest, roots: &[u32], top: [i32; 3], contexts: bool) -> Self {
-        let mut lists = Lists::new(forest, roots, top, contexts);
-        let mut lsc_ctx = Vec::new();
+        Self::in_memory(forest, roots, top, contexts, SpihtMemory::default())
+    }
+
+    /// [`SpihtDecoder::new`] with its lists in `memory` (whatever they held is dropped;
+    /// their capacity is kept).
+    pub fn in_memory(
+        forest: &'a Forest,
+        roots: &[u32],
+        top: [i32; 3],
+        contexts: bool,
+        memory: SpihtMemory,
+    ) -> Self {
+        let SpihtMemory {
+            lic,
+            lis,
+            lsc,
+            mut lsc_ctx,
+        } = memory;
+        let mut lists = Lists::in_memory(forest, roots, top, contexts, (lic, lis, lsc));
+        lsc_ctx.clear();
         if roots.len() == forest.num_trees {
             // The whole forest: reserve the lists' largest sizes once (address space only;
             // no copies while they grow).
@@ -406,6 +471,16 @@ impl<'a> SpihtDecoder<'a> {
     /// The plane the next [`SpihtDecoder::decode_plane`] decodes (−1 when done).
     pub fn plane(&self) -> i32 {
         self.lists.plane
+    }
+
+    /// The decoder's list memory, for the next decoder ([`SpihtDecoder::in_memory`]).
+    pub fn into_memory(self) -> SpihtMemory {
+        SpihtMemory {
+            lic: self.lists.lic,
+            lis: self.lists.lis,
+            lsc: self.lists.lsc,
+            lsc_ctx: self.lsc_ctx,
+        }
     }
 
     /// Decodes the current plane into `out`. Returns `false` if the stream ended before the
@@ -432,6 +507,20 @@ impl<'a> SpihtDecoder<'a> {
     /// division per entry, branch-free range decoding and refinement).
     #[inline(never)]
     fn decode_passes<const ON: bool>(&mut self, dec: &mut Decoder, out: &mut Coefficients) -> bool {
+        // The coder's state in locals (registers) for the whole pass, written back on return:
+        // through `dec`, every decision would store and reload it.
+        let mut d = *dec;
+        let done = self.decode_passes_with::<ON>(&mut d, out);
+        *dec = d;
+        done
+    }
+
+    #[inline(always)]
+    fn decode_passes_with<const ON: bool>(
+        &mut self,
+        dec: &mut Decoder,
+        out: &mut Coefficients,
+    ) -> bool {
         let n = self.lists.plane;
         if n < 0 {
             return false;
@@ -449,8 +538,13 @@ impl<'a> SpihtDecoder<'a> {
             sig, sign, refine, ..
         } = &mut l.ctx;
         let (sig, sign, refine) = (&mut sig[..], &mut sign[..], &mut refine[..]);
-        let Coefficients { lo, width, neg } = out;
-        let (lo, width, neg) = (&mut lo[..], &mut width[..], &mut neg[..]);
+        let Coefficients {
+            lo,
+            width,
+            neg,
+            first,
+        } = out;
+        let (lo, width, neg, first) = (&mut lo[..], &mut width[..], &mut neg[..], &mut first[..]);
         // One decision with context `ctx` (raw bit without contexts); stops the pass at the
         // first decision that needs a missing byte.
         macro_rules! decide {
@@ -462,18 +556,32 @@ impl<'a> SpihtDecoder<'a> {
                 b
             }};
         }
+        // A node with a component significant in an earlier plane has `first > n + 1`
+        // (entries found significant in this plane set `first = n + 1`).
+        let earlier = nb + 1;
         // The context row of node `node`'s significance tests: some component significant in
-        // an earlier plane (width > n; entries found significant in this plane have width n,
-        // refinement comes after sorting), and the level.
-        let sig_row = |width: &[u8], node: usize| -> (usize, usize) {
-            let w = &width[3 * node..3 * node + 3];
-            let earlier = |x: u8| x != INSIGNIFICANT && x > nb;
-            let other = earlier(w[0]) | earlier(w[1]) | earlier(w[2]);
-            (other as usize, (levels[node] as usize).min(CTX_LEVELS - 1))
+        // an earlier plane, and the level.
+        let sig_row = |first: &[u8], node: usize| -> (usize, usize) {
+            (
+                (first[node] > earlier) as usize,
+                (levels[node] as usize).min(CTX_LEVELS - 1),
+            )
         };
         let sig_at = |test: Test, other: usize, c: usize, lv: usize| {
             (((test as usize) * 2 + other) * 3 + c) * CTX_LEVELS + lv
         };
+        // Entry `e` of node `node` became significant with sign `s`.
+        macro_rules! significant {
+            ($e:expr, $node:expr, $s:expr, $ci:expr) => {{
+                let (e, node) = ($e, $node);
+                lo[e] = thr;
+                width[e] = nb;
+                neg[e] = $s;
+                first[node] = first[node].max(earlier);
+                l.lsc.push(e as u32);
+                lsc_ctx.push($ci as u8);
+            }};
+        }
         // LIC.
         let mut kept = 0;
         for idx in 0..l.lic.len() {
@@ -481,14 +589,11 @@ impl<'a> SpihtDecoder<'a> {
             let node = e / 3;
             let c = e - 3 * node;
             if active[c] {
-                let (other, lv) = sig_row(width, node);
+                let (other, lv) = sig_row(first, node);
                 if decide!(&mut sig[sig_at(Test::Lic, other, c, lv)]) {
-                    let s = decide!(&mut sign[c * CTX_LEVELS + lv]);
-                    lo[e] = thr;
-                    width[e] = nb;
-                    neg[e] = s;
-                    l.lsc.push(e as u32);
-                    lsc_ctx.push((c * CTX_LEVELS + lv) as u8);
+                    let ci = c * CTX_LEVELS + lv;
+                    let s = decide!(&mut sign[ci]);
+                    significant!(e, node, s, ci);
                     continue;
                 }
             }
@@ -507,20 +612,17 @@ impl<'a> SpihtDecoder<'a> {
             let c = e - 3 * node;
             let mut keep = true;
             if active[c] {
-                let (other, lv) = sig_row(width, node);
+                let (other, lv) = sig_row(first, node);
                 if entry & TYPE_B == 0 {
                     if decide!(&mut sig[sig_at(Test::SetA, other, c, lv)]) {
                         for &k in forest.offspring(node) {
                             let k = k as usize;
                             let ke = 3 * k + c;
-                            let (other, lv) = sig_row(width, k);
+                            let (other, lv) = sig_row(first, k);
                             if decide!(&mut sig[sig_at(Test::Offspring, other, c, lv)]) {
-                                let s = decide!(&mut sign[c * CTX_LEVELS + lv]);
-                                lo[ke] = thr;
-                                width[ke] = nb;
-                                neg[ke] = s;
-                                l.lsc.push(ke as u32);
-                                lsc_ctx.push((c * CTX_LEVELS + lv) as u8);
+                                let ci = c * CTX_LEVELS + lv;
+                                let s = decide!(&mut sign[ci]);
+                                significant!(ke, k, s, ci);
                             } else {
                                 l.lic.push(ke as u32);
                             }
