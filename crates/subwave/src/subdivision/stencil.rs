@@ -9,7 +9,10 @@
 //! vertex-varying data) interpolates through the same tables.
 //!
 //! Masks of the common configurations (smooth interior vertices by valence, smooth edges
-//! between two faces by arity) are asked of the rules once per level and reused.
+//! between two faces by arity) are asked of the rules once per level and reused; for those,
+//! [`level_apply`] sums the very (index, weight) sequence the generator would build, with the
+//! weights merged in the same order, without building it (Loop's 1-rings, Catmull-Clark's
+//! quads; degenerate neighbourhoods where the generator would merge more fall back to it).
 //! Quad/triangle splits ([`Split::QuadTri`]) ask every mask of the rules with the arities of
 //! the incident faces ([`Rules::vertex_mask_with_arities`], [`Rules::edge_mask_with_arities`]).
 
