@@ -1292,6 +1292,9 @@ impl<'a> Ctx<'a> {
                 let (se, de) = self.e_bar_v_int(i, e);
                 apply(x, term2(sf, df, se, de), b * b, i);
             };
+            // The general path through a `dyn` call: rare (irregular elements), and kept out
+            // of the regular loop's code.
+            let general: &(dyn Fn(usize, &mut [I; 3]) + Sync) = &general;
             par_chunks_small(v, |v0, out| {
                 let fo = &t.vertex_face_offsets[v0..=v0 + out.len()];
                 let eo = &t.vertex_edge_offsets[v0..=v0 + out.len()];
@@ -1324,6 +1327,9 @@ impl<'a> Ctx<'a> {
                 let (se, de) = isum(t.face_edges(i), e);
                 apply(x, term2(sv, dv, se, de), b * b, nv + ne + i);
             };
+            // The general path through a `dyn` call: rare (irregular elements), and kept out
+            // of the regular loop's code.
+            let general: &(dyn Fn(usize, &mut [I; 3]) + Sync) = &general;
             par_chunks_small(f, |f0, out| {
                 for (k, x) in out.iter_mut().enumerate() {
                     let i = f0 + k;
@@ -1354,6 +1360,9 @@ impl<'a> Ctx<'a> {
                 let (s, d) = isum(idx, src);
                 apply(x, term1(s, d), b, nv + i);
             };
+            // The general path through a `dyn` call: rare (irregular elements), and kept out
+            // of the regular loop's code.
+            let general: &(dyn Fn(usize, &mut [I; 3]) + Sync) = &general;
             if from_faces {
                 par_chunks_small(e, |e0, out| {
                     let o = &t.edge_face_offsets[e0..=e0 + out.len()];

@@ -354,9 +354,9 @@ impl<'h> TriangleWavelet<'h> {
         &self.tables
     }
 
-    /// The prediction tables, by value.
-    pub(crate) fn into_tables(self) -> Vec<StencilTable> {
-        self.tables
+    /// The prediction tables and their row patterns, by value.
+    pub(crate) fn into_parts(self) -> (Vec<StencilTable>, Vec<RowPattern>) {
+        (self.tables, self.patterns)
     }
 
     fn check_level(&self, level: usize) -> Result<()> {

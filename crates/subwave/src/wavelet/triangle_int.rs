@@ -71,7 +71,8 @@ struct DyadicRows {
 }
 
 impl DyadicRows {
-    fn new(t: &StencilTable) -> Self {
+    /// The rows of `t`, whose row pattern is `p`.
+    fn new(t: &StencilTable, p: RowPattern) -> Self {
         let k: Vec<i8> = t
             .weights
             .par_iter()
@@ -94,7 +95,6 @@ impl DyadicRows {
                     && ks.iter().map(|&k| (k as i32).abs()).sum::<i32>() <= 32
             })
             .collect();
-        let p = RowPattern::new(t);
         let pk: Vec<i64> = p.weights.iter().map(|&w| (w * 16.0) as i64).collect();
         let dyadic_pattern = !pk.is_empty()
             && p.weights
@@ -187,14 +187,14 @@ impl<'h> IntTriangleWavelet<'h> {
             && opts.creasing == d.creasing
             && opts.loop_weights == d.loop_weights
             && opts.sharp_angle.is_none();
-        let stencils = match opts.scheme {
+        let (stencils, patterns) = match opts.scheme {
             Scheme::Midpoint if defaults && untagged && h.levels() > 0 => {
-                TriangleWavelet::midpoint(h, false)?.into_tables()
+                TriangleWavelet::midpoint(h, false)?.into_parts()
             }
             Scheme::Butterfly if defaults && untagged && h.levels() > 0 => {
-                TriangleWavelet::butterfly(h, false)?.into_tables()
+                TriangleWavelet::butterfly(h, false)?.into_parts()
             }
-            _ => Refinement::build(&h.base, &o, true)?.stencils,
+            _ => (Refinement::build(&h.base, &o, true)?.stencils, Vec::new()),
         };
         for (j, t) in stencils.iter().enumerate() {
             if t.num_sources as usize != h.num_vertices(j) || t.len() != h.num_vertices(j + 1) {
@@ -212,14 +212,27 @@ impl<'h> IntTriangleWavelet<'h> {
                 }
             }
         }
-        Ok(Self::with_tables(h, stencils, lifted))
+        Ok(Self::with_tables(h, stencils, patterns, lifted))
     }
 
-    /// The wavelet of checked `tables`, with its plans.
-    fn with_tables(h: &'h Hierarchy, tables: Vec<StencilTable>, lifted: bool) -> Self {
+    /// The wavelet of checked `tables`, with its plans; `patterns` are the tables' row
+    /// patterns if already built (else built here).
+    fn with_tables(
+        h: &'h Hierarchy,
+        tables: Vec<StencilTable>,
+        mut patterns: Vec<RowPattern>,
+        lifted: bool,
+    ) -> Self {
+        if patterns.len() != tables.len() {
+            patterns = tables.iter().map(RowPattern::new).collect();
+        }
         IntTriangleWavelet {
             h,
-            dyadic: tables.iter().map(DyadicRows::new).collect(),
+            dyadic: tables
+                .iter()
+                .zip(patterns)
+                .map(|(t, p)| DyadicRows::new(t, p))
+                .collect(),
             tables,
             update_plan: if lifted {
                 UpdatePlan::new(h)
@@ -506,6 +519,7 @@ mod tests {
                 let mut r = IntTriangleWavelet::with_tables(
                     &h,
                     Refinement::build(&h.base, &o, true).unwrap().stencils,
+                    Vec::new(),
                     w.lifted,
                 );
                 // The update's fallback (no plan: edge-face lookups).
