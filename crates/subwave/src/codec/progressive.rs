@@ -82,7 +82,7 @@ use crate::subdivision::refine::{child_faces, Split};
 use crate::subdivision::{Scheme, SubdivideOptions};
 use crate::topology::Topology;
 use crate::wavelet::bertram::{BSplineWavelet, Degree};
-use crate::wavelet::triangle::{DetailFrame, TriangleWavelet};
+use crate::wavelet::triangle::{DetailFrame, SynthesisScratch, TriangleWavelet};
 use crate::wavelet::triangle_int::IntTriangleWavelet;
 use crate::{Error, Result};
 
@@ -363,10 +363,18 @@ impl<'h> Transform<'h> {
         }
     }
 
-    fn inverse(&self, data: &mut [DVec3]) -> Result<()> {
+    fn inverse(&self, data: &mut [DVec3], scratch: &mut SynthesisScratch) -> Result<()> {
         match self {
-            Transform::Tri(t) => t.reconstruct_in_place(data),
+            Transform::Tri(t) => t.reconstruct_in_place_with(data, scratch),
             Transform::Quad(w, levels) => w.synthesize(levels, data),
+        }
+    }
+
+    /// The synthesis' scratch memory, its pages touched ([`SynthesisScratch::prepared`]).
+    fn scratch(&self) -> SynthesisScratch {
+        match self {
+            Transform::Tri(t) => SynthesisScratch::prepared(t),
+            Transform::Quad(..) => SynthesisScratch::default(),
         }
     }
 }
@@ -695,7 +703,7 @@ fn quantization_rms(
             };
         }
     });
-    transform.inverse(&mut data)?;
+    transform.inverse(&mut data, &mut SynthesisScratch::default())?;
     let sum: f64 = data
         .par_iter()
         .zip(reference.par_iter())
@@ -1301,7 +1309,7 @@ fn decode_in_pool(
     // tables, the finest faces and the positions' buffer (its pages touched here, off the
     // critical path): they are independent, so they are built in parallel.
     let num_vertices = hierarchy.num_vertices(hierarchy.levels());
-    let (coded, (t, finest, buffer)) = rayon::join(
+    let (coded, (t, finest, (buffer, mut scratch))) = rayon::join(
         || -> Result<_> {
             let forest = setup_forest(&p, &hierarchy)?;
             let coded = decode_coefficients(&p, &forest, bytes, opts, buffers)?;
@@ -1320,7 +1328,11 @@ fn decode_in_pool(
             } else {
                 Vec::new()
             };
-            (t, finest, buffer)
+            let scratch = match &t {
+                Ok(AnyTransform::Float(t)) => t.scratch(),
+                _ => SynthesisScratch::default(),
+            };
+            (t, finest, (buffer, scratch))
         },
     );
     let (forest, (coefs, used, planes_complete, planes, complete)) = coded?;
@@ -1330,7 +1342,7 @@ fn decode_in_pool(
         forest.num_nodes,
         &coefs,
         &t?,
-        buffer,
+        (buffer, &mut scratch),
     );
     buffers.coefficients = coefs;
     let positions = positions?;
@@ -1484,7 +1496,7 @@ fn reconstruct(p: &Parsed, s: &Setup, coefs: &Coefficients) -> Result<Mesh> {
         s.forest.num_nodes,
         coefs,
         &transform(p, &s.hierarchy)?,
-        Vec::new(),
+        (Vec::new(), &mut SynthesisScratch::default()),
     )?;
     let hier = &s.hierarchy;
     Ok(hier.level_mesh(hier.levels(), positions))
@@ -1493,14 +1505,14 @@ fn reconstruct(p: &Parsed, s: &Setup, coefs: &Coefficients) -> Result<Mesh> {
 /// The finest positions from the coefficients of the `num_nodes` forest nodes, the base
 /// (integer base coefficients in lossless mode, base positions otherwise; [`Setup`]) and
 /// the inverse transform. `buffer` is the memory of the result (any contents; its capacity
-/// is used if it suffices).
+/// is used if it suffices), `scratch` the synthesis' scratch memory.
 fn reconstruct_with(
     p: &Parsed,
     (base_q, base_positions): (&[[i64; 3]], &[DVec3]),
     num_nodes: usize,
     coefs: &Coefficients,
     t: &AnyTransform,
-    buffer: Vec<DVec3>,
+    (buffer, scratch): (Vec<DVec3>, &mut SynthesisScratch),
 ) -> Result<Vec<DVec3>> {
     let h = &p.c.header;
     let v0 = base_positions.len().max(base_q.len());
@@ -1545,7 +1557,7 @@ fn reconstruct_with(
                 }
                 d
             }));
-            t.inverse(&mut flat)?;
+            t.inverse(&mut flat, scratch)?;
             flat
         }
     };

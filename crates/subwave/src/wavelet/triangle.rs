@@ -563,9 +563,23 @@ impl<'h> TriangleWavelet<'h> {
     /// # Errors
     /// As [`TriangleWavelet::synthesize_level`]; a wrong length.
     pub fn reconstruct_in_place(&self, data: &mut [DVec3]) -> Result<()> {
+        self.reconstruct_in_place_with(data, &mut SynthesisScratch::default())
+    }
+
+    /// [`TriangleWavelet::reconstruct_in_place`] with its scratch memory in `scratch` (any
+    /// history; same result), e.g. one from [`SynthesisScratch::prepared`] whose pages were
+    /// touched off the critical path.
+    ///
+    /// # Errors
+    /// As [`TriangleWavelet::reconstruct_in_place`].
+    pub fn reconstruct_in_place_with(
+        &self,
+        data: &mut [DVec3],
+        scratch: &mut SynthesisScratch,
+    ) -> Result<()> {
         let l = self.tables.len();
         Self::check_len("flat", l, data.len(), self.h.num_vertices(l))?;
-        let (mut pred, mut normals) = (Vec::new(), Vec::new());
+        let SynthesisScratch { pred, normals } = scratch;
         for j in 0..l {
             let n = self.h.num_vertices(j + 1);
             let nc = self.h.num_vertices(j);
@@ -581,7 +595,7 @@ impl<'h> TriangleWavelet<'h> {
                     if !self.h.topology(j + 1).rings_ordered =>
                 {
                     let (even, odd) = data[..n].split_at_mut(nc);
-                    let scratch = (&mut pred, &mut normals);
+                    let scratch = (&mut *pred, &mut *normals);
                     self.synthesize_local_in_place(j, even, odd, scratch, lifted);
                 }
                 _ => {
@@ -1180,6 +1194,41 @@ fn solve_even_rows(
         Ok(x.into_par_iter().map(|c| c + m).collect())
     } else {
         Err((it, rel(res)))
+    }
+}
+
+/// Scratch memory of a local-frame synthesis ([`TriangleWavelet::reconstruct_in_place_with`]):
+/// the predicted odd vertices and the predicted fine faces' normals of a level. Its
+/// contents never carry over from one synthesis to the next.
+#[derive(Clone, Debug, Default)]
+pub struct SynthesisScratch {
+    pred: Vec<DVec3>,
+    normals: Vec<[DVec3; 4]>,
+}
+
+impl SynthesisScratch {
+    /// Scratch sized for the finest synthesis step of `w` (empty unless `w` is an
+    /// interpolating wavelet with local frames, the only synthesis that uses it), every page
+    /// written once, so that a synthesis run later does not fault its memory in: a decoder
+    /// prepares it beside its coefficient decoding.
+    pub fn prepared(w: &TriangleWavelet) -> SynthesisScratch {
+        let l = w.tables.len();
+        let mut s = SynthesisScratch::default();
+        if l == 0
+            || !matches!(
+                (w.kind, w.frame),
+                (Kind::Interpolating { .. }, DetailFrame::Local)
+            )
+        {
+            return s;
+        }
+        let odd = w.h.num_vertices(l) - w.h.num_vertices(l - 1);
+        let faces = w.h.topology(l - 1).num_faces();
+        s.pred.resize(odd, DVec3::ZERO);
+        s.normals.resize(faces, [DVec3::ZERO; 4]);
+        s.pred.clear();
+        s.normals.clear();
+        s
     }
 }
 
@@ -1809,6 +1858,15 @@ mod butterfly_wavelets {
                         bits(&data) == bits(&signal),
                         "lifted {lifted}, midpoint {midpoint}: the syntheses differ"
                     );
+                    // The same with prepared scratch memory, and with scratch memory that
+                    // holds another synthesis' leftovers.
+                    let mut scratch = SynthesisScratch::prepared(&fast);
+                    for _ in 0..2 {
+                        let mut again = flat.clone();
+                        fast.reconstruct_in_place_with(&mut again, &mut scratch)
+                            .unwrap();
+                        assert!(bits(&again) == bits(&signal), "scratch changes the result");
+                    }
                 }
             }
         }
