@@ -471,9 +471,11 @@ fn untangle_flat(uv: &mut [DVec2], nfree: usize, faces: &[Vec<u32>]) -> bool {
 }
 
 /// The point `x` maximizing `r` subject to `u·x − r ≥ c` for the constraints `cons` (unit
-/// `u`) and a box `2 radius` around `centre`, by enumerating the vertices of the linear
-/// program in `(x, y, r)` (a few constraints).
-fn chebyshev_centre(
+/// `u`) and a box `2 radius` around `centre` (appended to `cons`), by enumerating the
+/// vertices of the linear program in `(x, y, r)` (a few constraints): the Chebyshev centre
+/// of the kernel of a star (`r < 0`: the kernel is empty, `x` violates the constraints
+/// least). `None` for fewer than two constraints or a zero radius.
+pub(super) fn chebyshev_centre(
     cons: &mut Vec<(DVec2, f64)>,
     centre: DVec2,
     radius: f64,

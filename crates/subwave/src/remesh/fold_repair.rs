@@ -17,10 +17,10 @@
 //! subdivision connectivity is untouched; pinned vertices (on boundary and feature chains)
 //! stay on their curves.
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
-use super::flatten::{flat_reembed, Patch};
+use super::flatten::{chebyshev_centre, flat_reembed, Patch};
 use super::quality::{min_angle, DEGENERATE_DEGREES};
 use super::resample::{face_hints, face_normal, face_region, flips_around, Projector};
 use crate::topology::Topology;
@@ -480,6 +480,19 @@ fn reembed(
                 .iter()
                 .map(|&v| (pos[v as usize], hints[v as usize]))
                 .collect();
+            // A re-embedding is kept if it lowers the disc's bad faces without pulling faces
+            // off the input; otherwise the disc is restored.
+            let keep = |pos: &mut [DVec3], hints: &mut [u32], before: (usize, f64, f64)| {
+                let after = score(pos, hints);
+                let better = after.0 < before.0 && after.1 <= before.1.max(0.05 * before.2);
+                if !better {
+                    for (&v, &(p, t)) in free.iter().zip(&saved) {
+                        pos[v as usize] = p;
+                        hints[v as usize] = t;
+                    }
+                }
+                better
+            };
             if let Some(before) = before {
                 for _ in 0..MEMBRANE_SWEEPS {
                     for &v in &free {
@@ -521,15 +534,10 @@ fn reembed(
                     pos[v as usize] = q;
                     hints[v as usize] = t;
                 }
-                let after = score(pos, hints);
-                if after.0 < before.0 && after.1 <= before.1.max(0.05 * before.2) {
+                if keep(pos, hints, before) {
                     moved += free.len();
                     repaired = true;
                     break;
-                }
-                for (&v, &(p, t)) in free.iter().zip(&saved) {
-                    pos[v as usize] = p;
-                    hints[v as usize] = t;
                 }
             }
             // Where the input bends within the disc, a membrane lifted along one normal
@@ -551,16 +559,10 @@ fn reembed(
                     pos[v as usize] = p;
                     hints[v as usize] = t;
                 }
-                let after = score(pos, hints);
-                tracing::trace!(k, before = ?before, after = ?after, "flat result");
-                if after.0 < before.0 && after.1 <= before.1.max(0.05 * before.2) {
+                if keep(pos, hints, before) {
                     moved += free.len();
                     repaired = true;
                     break;
-                }
-                for (&v, &(p, t)) in free.iter().zip(&saved) {
-                    pos[v as usize] = p;
-                    hints[v as usize] = t;
                 }
             }
         }
@@ -596,7 +598,7 @@ pub fn kernel_centre(
     // Constraints u·x − r ≥ c with unit u.
     let mut cons: Vec<([f64; 2], f64)> = Vec::with_capacity(16);
     let mut radius = 0.0f64;
-    let mut centre = [0.0; 2];
+    let mut centre = [0.0f64; 2];
     let mut nring = 0.0;
     for &f in topo.vertex_faces(v) {
         let fv = topo.face_vertices(f as usize);
@@ -624,48 +626,13 @@ pub fn kernel_centre(
     if cons.len() < 3 || radius <= 0.0 {
         return None;
     }
-    centre = [centre[0] / nring, centre[1] / nring];
+    let centre = DVec2::new(centre[0] / nring, centre[1] / nring);
     // The margin of `p` itself (the origin of the plane).
     let margin = cons.iter().map(|c| -c.1).fold(f64::INFINITY, f64::min);
-    let big = 2.0 * radius;
-    for u in [[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]] {
-        cons.push((u, u[0] * centre[0] + u[1] * centre[1] - big));
-    }
-    let mut best: Option<([f64; 2], f64)> = None;
-    let nc = cons.len();
-    for i in 0..nc {
-        for j in i + 1..nc {
-            for k in j + 1..nc {
-                // u·x − r = c for the three constraints (Cramer).
-                let rows = [cons[i], cons[j], cons[k]];
-                let det3 = |m: [[f64; 3]; 3]| {
-                    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-                        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-                        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-                };
-                let a = rows.map(|(u, _)| [u[0], u[1], -1.0]);
-                let det = det3(a);
-                if det.abs() < 1e-12 {
-                    continue;
-                }
-                let c = rows.map(|(_, c)| c);
-                let col = |j: usize| {
-                    let mut m = a;
-                    for r in 0..3 {
-                        m[r][j] = c[r];
-                    }
-                    det3(m) / det
-                };
-                let (x, y, r) = (col(0), col(1), col(2));
-                if best.is_some_and(|b| r <= b.1) {
-                    continue;
-                }
-                let tol = 1e-12 * radius;
-                if cons.iter().all(|(u, c)| u[0] * x + u[1] * y - r >= c - tol) {
-                    best = Some(([x, y], r));
-                }
-            }
-        }
-    }
-    best.map(|(x, r)| (p + e1 * x[0] + e2 * x[1], r, margin))
+    let mut cons: Vec<(DVec2, f64)> = cons
+        .into_iter()
+        .map(|(u, c)| (DVec2::new(u[0], u[1]), c))
+        .collect();
+    let best = chebyshev_centre(&mut cons, centre, radius);
+    best.map(|(x, r)| (p + e1 * x.x + e2 * x.y, r, margin))
 }
