@@ -704,11 +704,14 @@ fn quantization_rms(
         }
     });
     transform.inverse(&mut data, &mut SynthesisScratch::default())?;
-    let sum: f64 = data
-        .par_iter()
-        .zip(reference.par_iter())
-        .map(|(a, b)| a.distance_squared(*b))
-        .sum();
+    // Fixed chunks summed in order: the result (and so the planes chosen) does not depend on
+    // the threads' scheduling.
+    let parts: Vec<f64> = data
+        .par_chunks(8192)
+        .zip(reference.par_chunks(8192))
+        .map(|(a, b)| a.iter().zip(b).map(|(a, b)| a.distance_squared(*b)).sum())
+        .collect();
+    let sum: f64 = parts.into_iter().sum();
     Ok((sum / data.len().max(1) as f64).sqrt())
 }
 

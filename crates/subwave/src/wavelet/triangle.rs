@@ -1069,13 +1069,26 @@ impl EvenRows<'_> {
     }
 }
 
-/// Componentwise dot products of two 3-vector signals.
+/// Componentwise dot products of two 3-vector signals, summed in an order that does not
+/// depend on the threads' scheduling (fixed chunks of [`ROWS`], then their sums in order;
+/// rayon's `sum` associates as the work happens to be split, which changes the last bits
+/// from run to run under load).
 fn dot3(a: &[DVec3], b: &[DVec3]) -> DVec3 {
-    a.par_iter()
-        .with_min_len(ROWS)
-        .zip(b)
-        .map(|(x, y)| *x * *y)
-        .sum()
+    let parts: Vec<DVec3> = a
+        .par_chunks(ROWS)
+        .zip(b.par_chunks(ROWS))
+        .map(|(a, b)| a.iter().zip(b).map(|(x, y)| *x * *y).sum::<DVec3>())
+        .collect();
+    parts.into_iter().sum()
+}
+
+/// The sum of a 3-vector signal, in an order independent of scheduling (as [`dot3`]).
+fn sum3(a: &[DVec3]) -> DVec3 {
+    let parts: Vec<DVec3> = a
+        .par_chunks(ROWS)
+        .map(|a| a.iter().sum::<DVec3>())
+        .collect();
+    parts.into_iter().sum()
 }
 
 /// Componentwise max norm.
@@ -1106,7 +1119,7 @@ fn solve_even_rows(
     }
     let a = EvenRows::new(t);
     // Rows sum to 1: solve for c − m with b − m (scale-independent tolerance).
-    let m = b.par_iter().sum::<DVec3>() / n as f64;
+    let m = sum3(b) / n as f64;
     let b: Vec<DVec3> = b.par_iter().map(|x| *x - m).collect();
     let scale = max3(&b).max(DVec3::splat(f64::MIN_POSITIVE));
     let tol = opts.tolerance * scale;
