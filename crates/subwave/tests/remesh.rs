@@ -377,7 +377,7 @@ fn fold_repair_removes_injected_folds() {
         pushed += 1;
     }
     let before = pos.clone();
-    let fr = repair_folds(&mut pos, &mut hints, &topo, &fixed, &proj, 12, None);
+    let fr = repair_folds(&mut pos, &mut hints, &topo, &fixed, &[], &proj, 12, None);
     assert!(
         fr.flipped_before >= pushed,
         "{pushed} pushes gave only {fr:?}"
@@ -399,4 +399,70 @@ fn fold_repair_removes_injected_folds() {
     };
     let q = subwave::remesh::quality::measure(&mesh, &proj);
     assert_eq!((q.flipped, q.degenerate), (0, 0), "{q:?}");
+}
+
+/// A fold that only the boundary can open: two remesh vertices on the input's boundary in
+/// swapped order turn the face on the edge between them over, whatever the interior does.
+/// With those vertices pinned the repair cannot remove it; allowed to slide along the
+/// input's boundary (between the corners, which stay), they are spaced out again, and no
+/// face is left flipped.
+#[test]
+fn fold_repair_slides_rim_vertices_along_the_boundary() {
+    use subwave::remesh::fold_repair::repair_folds;
+    use subwave::remesh::resample::Projector;
+    let scale = |m: &mut Mesh, s: f64| m.positions.iter_mut().for_each(|p| *p *= s);
+    let mut input = generate::grid(20, 20, true);
+    scale(&mut input, 1.0 / 20.0);
+    let tris: Vec<[u32; 3]> = input.faces().map(|f| [f[0], f[1], f[2]]).collect();
+    let proj = Projector::new(&input.positions, &tris).unwrap();
+    let mut rem = generate::grid(5, 5, true);
+    scale(&mut rem, 1.0 / 5.0);
+    let topo = Topology::build(&rem);
+    // The bottom row's vertices 2 and 3 (x = 0.4, 0.6) in swapped order.
+    rem.positions.swap(2, 3);
+    let fixed: Vec<bool> = (0..rem.num_vertices())
+        .map(|v| {
+            topo.vertex_edges(v)
+                .iter()
+                .any(|&e| topo.is_boundary_edge(e as usize))
+        })
+        .collect();
+    let slides: Vec<bool> = (0..rem.num_vertices())
+        .map(|v| (1..=4).contains(&v))
+        .collect();
+    let run = |slides: &[bool]| {
+        let mut pos = rem.positions.clone();
+        let mut hints: Vec<u32> = pos.iter().map(|&p| proj.closest(p).1).collect();
+        let fr = repair_folds(&mut pos, &mut hints, &topo, &fixed, slides, &proj, 12, None);
+        (fr, pos)
+    };
+    let (pinned, _) = run(&[]);
+    assert!(pinned.flipped_before >= 1, "{pinned:?}");
+    assert!(
+        pinned.flipped_after > 0,
+        "pinned, the fold cannot open: {pinned:?}"
+    );
+    let (slid, pos) = run(&slides);
+    assert_eq!(
+        (slid.flipped_after, slid.degenerate_after),
+        (0, 0),
+        "{slid:?}"
+    );
+    // The bottom row stays on the boundary, in order between the corners, which stay.
+    assert_eq!(pos[0], rem.positions[0]);
+    assert_eq!(pos[5], rem.positions[5]);
+    for v in 0..5 {
+        assert!(
+            pos[v].y.abs() < 1e-12 && pos[v].z.abs() < 1e-12,
+            "{:?}",
+            pos[v]
+        );
+        assert!(pos[v].x < pos[v + 1].x, "{:?}", &pos[..6]);
+    }
+    // Only the sliding vertices moved among the fixed ones.
+    for v in 0..rem.num_vertices() {
+        if fixed[v] && !slides[v] {
+            assert_eq!(pos[v], rem.positions[v], "vertex {v}");
+        }
+    }
 }

@@ -14,8 +14,14 @@
 //! the plane), and each goes back to the input point with the same flat coordinates (it
 //! lies on the input by construction). Only positions change; the caller keeps the result
 //! only if it lowers the number of bad faces. On the corpus at 5 levels this halves the
-//! flipped faces left on the bunny (81 to 32: the rest touch its holes' rims, whose
-//! vertices stay pinned) and leaves 1 of spot's 29.
+//! flipped faces left on the bunny (81 to 32) and leaves 1 of spot's 29.
+//!
+//! Next to a hole, the remesh's boundary vertices crowd on the input's boundary where the
+//! interior needs room; pinned, they keep the fold. [`RimRun`]s let them slide along the
+//! input's boundary: between two boundary vertices that stay, they are spaced evenly by
+//! arc length on the patch's boundary loop, which runs along the input's boundary there
+//! (with the discs chosen as circles of the flattening in [`super::fold_repair`], the
+//! bunny's flipped faces at 5 levels go from 32 to 2).
 
 use std::collections::HashMap;
 
@@ -40,27 +46,39 @@ const MAX_PATCH_TRIANGLES: usize = 20_000;
 const CG_ITERATIONS: usize = 2_000;
 
 /// New positions and input triangles for the `free` vertices of a remesh disc whose faces
-/// are `disc_faces` (every face around a free vertex), from Tutte's embedding in `patch`,
-/// a flattening of the input under the disc (see the module documentation), untangled
-/// vertex by vertex where the disc's boundary is not convex.
+/// are `disc_faces` (every face around a free vertex or a sliding one), from Tutte's
+/// embedding in `patch`, a flattening of the input under the disc (see the module
+/// documentation), untangled vertex by vertex where the disc's boundary is not convex;
+/// then for the vertices of `runs`, in their order.
+///
+/// The vertices of each run of `runs` (remesh vertices on the input's boundary, pinned
+/// otherwise) slide along the input's boundary between their anchors, evenly spaced by
+/// arc length: the boundary of a disc whose vertices crowd on the input's boundary
+/// (next to a hole, where the input is a narrow strip) then leaves the interior room to
+/// unfold.
 ///
 /// Preconditions: `pos` and `hints` have `topo.num_vertices` entries, the vertices lie on
-/// the input behind `proj`, and `hints[v]` is an input triangle near vertex `v`.
-/// Returns `None` when a vertex of the disc lies outside the patch or the flat embedding
-/// of the disc still folds after the untangling.
+/// the input behind `proj`, and `hints[v]` is an input triangle near vertex `v`; runs do
+/// not share vertices with `free` or each other.
+/// Returns `None` when a vertex of the disc lies outside the patch, a run's anchors are
+/// not joined by the input's boundary inside the patch, or the flat embedding of the disc
+/// still folds after the untangling.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn flat_reembed(
     patch: &Patch,
     pos: &[DVec3],
     hints: &[u32],
     topo: &Topology,
     free: &[u32],
+    runs: &[RimRun],
     disc_faces: &[u32],
     proj: &Projector,
 ) -> Option<Vec<(DVec3, u32)>> {
-    // The disc's vertices, free ones first.
+    // The disc's vertices, free ones first, then the sliding ones.
     let mut local: HashMap<u32, u32> = HashMap::new();
     let mut verts: Vec<u32> = Vec::new();
-    for &v in free.iter().chain(
+    let sliding = runs.iter().flat_map(|r| r.verts.iter());
+    for &v in free.iter().chain(sliding).chain(
         disc_faces
             .iter()
             .flat_map(|&f| topo.face_vertices(f as usize)),
@@ -70,14 +88,33 @@ pub(super) fn flat_reembed(
             verts.len() as u32 - 1
         });
     }
-    // Flat coordinates of the disc's vertices: the fixed ones where they lie, the free
-    // ones from Tutte's embedding spanned by them.
+    let flat = |v: u32| patch.flat_vertex(proj, pos[v as usize], hints[v as usize]);
+    // Flat coordinates of the disc's vertices: the fixed ones where they lie, the sliding
+    // ones evenly along the boundary between their anchors, the free ones from Tutte's
+    // embedding spanned by them.
     let nfree = free.len();
+    let nslide: usize = runs.iter().map(|r| r.verts.len()).sum();
     let mut known: Vec<Option<DVec2>> = vec![None; verts.len()];
-    for (i, &v) in verts.iter().enumerate().skip(nfree) {
-        let p = pos[v as usize];
-        let (_, t) = proj.closest_near(p, &[hints[v as usize]]);
-        known[i] = Some(patch.flat_of(proj, p, t)?);
+    let mut next = nfree;
+    for run in runs {
+        let a = patch.rim_param(flat(run.anchors[0])?)?;
+        let b = patch.rim_param(flat(run.anchors[1])?)?;
+        let total = patch.rim_arc[patch.rim.len()];
+        // Both ways round the loop; the one along the input's boundary (the shorter if
+        // both are).
+        let fwd = (b - a).rem_euclid(total);
+        let delta = [fwd, fwd - total]
+            .into_iter()
+            .filter(|&d| patch.rim_is_open(a, d))
+            .min_by(|x, y| x.abs().total_cmp(&y.abs()))?;
+        let n = run.verts.len() as f64;
+        for j in 0..run.verts.len() {
+            known[next] = Some(patch.rim_point(a + delta * (j as f64 + 1.0) / (n + 1.0)));
+            next += 1;
+        }
+    }
+    for i in nfree + nslide..verts.len() {
+        known[i] = Some(flat(verts[i])?);
     }
     let mut start = vec![0u32; verts.len() + 1];
     let mut adj: Vec<u32> = Vec::new();
@@ -111,7 +148,7 @@ pub(super) fn flat_reembed(
         tracing::trace!(free = nfree, "flat: the disc stays folded in the plane");
         return None;
     }
-    (0..nfree)
+    (0..nfree + nslide)
         .map(|i| patch.lift(proj, uv[i]))
         .collect::<Option<Vec<_>>>()
 }
@@ -139,6 +176,24 @@ pub(super) struct Patch {
     /// The triangles overlapping each grid cell (CSR: `bucket[bucket_start[c]..bucket_start[c + 1]]`).
     bucket_start: Vec<u32>,
     bucket: Vec<u32>,
+    /// The patch's boundary loop (local vertex indices, counterclockwise in the plane).
+    rim: Vec<u32>,
+    /// Arc length along `rim` at each of its vertices (`rim.len() + 1` entries, in 3D).
+    rim_arc: Vec<f64>,
+    /// Whether the loop's edge `i` (`rim[i]` to `rim[i + 1]`) is on the input's boundary
+    /// (rather than cut out of the input by the patch).
+    rim_open: Vec<bool>,
+}
+
+/// A chain of remesh vertices on the input's boundary that may slide along it: `verts` in
+/// their order along the remesh boundary, between the two `anchors` that stay (see
+/// [`flat_reembed`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(super) struct RimRun {
+    /// The boundary vertices before the first and after the last of `verts`.
+    pub anchors: [u32; 2],
+    /// The sliding vertices, from `anchors[0]` to `anchors[1]`.
+    pub verts: Vec<u32>,
 }
 
 impl Patch {
@@ -306,7 +361,27 @@ impl Patch {
             for p in &mut uv {
                 p.y = -p.y;
             }
+            // The loop then runs clockwise: reversed, so that it runs counterclockwise.
+            lp.reverse();
         }
+        let mut rim_arc = vec![0.0f64; lp.len() + 1];
+        for i in 0..lp.len() {
+            rim_arc[i + 1] = rim_arc[i] + p3(lp[i]).distance(p3(lp[(i + 1) % lp.len()]));
+        }
+        // An edge of the loop is on the input's boundary when one input triangle has it.
+        let rim_open: Vec<bool> = (0..lp.len())
+            .map(|i| {
+                let (a, b) = (
+                    vglobal[lp[i] as usize],
+                    vglobal[lp[(i + 1) % lp.len()] as usize],
+                );
+                proj.fan(a)
+                    .iter()
+                    .filter(|&&t| proj.triangle(t).contains(&b))
+                    .count()
+                    == 1
+            })
+            .collect();
         // Buckets of the flat triangles for point location.
         let cells = ((corners.len() as f64).sqrt().ceil() as usize).clamp(1, 256);
         let cell_of =
@@ -348,7 +423,81 @@ impl Patch {
             cells,
             bucket_start,
             bucket,
+            rim: lp,
+            rim_arc,
+            rim_open,
         })
+    }
+
+    /// Arc-length parameter along the patch's boundary loop of flat point `x`, which must
+    /// lie on the loop (within `1e-9`); `None` otherwise.
+    fn rim_param(&self, x: DVec2) -> Option<f64> {
+        let n = self.rim.len();
+        let mut best: Option<(f64, f64)> = None;
+        for i in 0..n {
+            let a = self.uv[self.rim[i] as usize];
+            let b = self.uv[self.rim[(i + 1) % n] as usize];
+            let d = b - a;
+            let l2 = d.length_squared();
+            let t = if l2 > 0.0 {
+                ((x - a).dot(d) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let dist = x.distance(a + d * t);
+            if best.is_none_or(|bst| dist < bst.0) {
+                best = Some((
+                    dist,
+                    self.rim_arc[i] + t * (self.rim_arc[i + 1] - self.rim_arc[i]),
+                ));
+            }
+        }
+        best.filter(|b| b.0 <= 1e-9).map(|b| b.1)
+    }
+
+    /// The flat point at arc-length parameter `s` (any real: taken modulo the loop's
+    /// length) along the patch's boundary loop.
+    fn rim_point(&self, s: f64) -> DVec2 {
+        let n = self.rim.len();
+        let total = self.rim_arc[n];
+        let s = s.rem_euclid(total);
+        let i = (self.rim_arc.partition_point(|&a| a <= s) - 1).min(n - 1);
+        let (a, b) = (self.rim_arc[i], self.rim_arc[i + 1]);
+        let t = if b > a { (s - a) / (b - a) } else { 0.0 };
+        let (pa, pb) = (
+            self.uv[self.rim[i] as usize],
+            self.uv[self.rim[(i + 1) % n] as usize],
+        );
+        pa + (pb - pa) * t
+    }
+
+    /// Whether the loop between parameters `a` and `a + delta` (`delta` of either sign,
+    /// `|delta|` below the loop's length) runs only along the input's boundary.
+    fn rim_is_open(&self, a: f64, delta: f64) -> bool {
+        let n = self.rim.len();
+        let total = self.rim_arc[n];
+        let (lo, hi) = if delta >= 0.0 {
+            (a, a + delta)
+        } else {
+            (a + delta, a)
+        };
+        let lo = lo.rem_euclid(total);
+        let hi = lo + (hi - lo);
+        // Edges overlapping (lo, hi) with positive length, on the loop and its copy shifted
+        // by one turn.
+        (0..n).all(|i| {
+            let overlaps = |shift: f64| {
+                let (s, e) = (self.rim_arc[i] + shift, self.rim_arc[i + 1] + shift);
+                s.max(lo) < e.min(hi)
+            };
+            self.rim_open[i] || !(overlaps(0.0) || overlaps(total))
+        })
+    }
+    /// Flat coordinates of the input point `p` near input triangle `hint` (`None` if the
+    /// input triangle it lies on is not in the patch).
+    pub(super) fn flat_vertex(&self, proj: &Projector, p: DVec3, hint: u32) -> Option<DVec2> {
+        let (_, t) = proj.closest_near(p, &[hint]);
+        self.flat_of(proj, p, t)
     }
 
     /// Flat coordinates of input point `p` on input triangle `t` (`None` if `t` is not in
@@ -746,8 +895,17 @@ mod tests {
         assert!(folded > 0, "the test fold must fold");
         let all: Vec<u32> = (0..rpos.len() as u32).collect();
         let patch = Patch::under(&rpos, &hints, &all, &proj).unwrap();
-        let moved =
-            flat_reembed(&patch, &rpos, &hints, &topo, &[centre as u32], &disc, &proj).unwrap();
+        let moved = flat_reembed(
+            &patch,
+            &rpos,
+            &hints,
+            &topo,
+            &[centre as u32],
+            &[],
+            &disc,
+            &proj,
+        )
+        .unwrap();
         rpos[centre] = moved[0].0;
         for &f in &disc {
             let fv = topo.face_vertices(f as usize);

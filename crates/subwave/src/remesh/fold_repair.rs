@@ -20,7 +20,7 @@
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
-use super::flatten::{chebyshev_centre, flat_reembed, Patch};
+use super::flatten::{chebyshev_centre, flat_reembed, Patch, RimRun};
 use super::quality::{min_angle, DEGENERATE_DEGREES};
 use super::resample::{face_hints, face_normal, face_region, flips_around, Projector};
 use crate::topology::Topology;
@@ -128,17 +128,22 @@ fn counts(state: &[FaceState]) -> (usize, usize) {
 /// Repairs flipped and degenerate faces of a level (see the module documentation): at most
 /// `rounds` Gauss-Seidel rounds over the free vertices of the bad faces, the region growing
 /// by one ring per round (up to three). `hints[v]` is an input triangle near vertex `v`
-/// (updated as vertices move); `fixed` vertices do not move. `suspects`: the only faces that
-/// can be flipped or have an angle below 2° (as [`super::resample::untangle_bad`] returns
-/// them), or `None` to measure every face.
+/// (updated as vertices move); `fixed` vertices do not move, except those marked in
+/// `slides` (remesh boundary vertices on the input's boundary, or an empty slice for none),
+/// which a disc's re-embedding may slide along the input's boundary between boundary
+/// vertices that stay. `suspects`: the only faces that can be flipped or have an angle
+/// below 2° (as [`super::resample::untangle_bad`] returns them), or `None` to measure
+/// every face.
 ///
-/// Preconditions: `pos`, `hints` and `fixed` have `topo.num_vertices` entries; the vertices
-/// lie on the input behind `proj`.
+/// Preconditions: `pos`, `hints` and `fixed` have `topo.num_vertices` entries, `slides`
+/// as many or none; the vertices lie on the input behind `proj`.
+#[allow(clippy::too_many_arguments)]
 pub fn repair_folds(
     pos: &mut [DVec3],
     hints: &mut [u32],
     topo: &Topology,
     fixed: &[bool],
+    slides: &[bool],
     proj: &Projector,
     rounds: u32,
     suspects: Option<&[u32]>,
@@ -193,7 +198,7 @@ pub fn repair_folds(
             bad = bad.len(),
             "fold repair: vertex rounds"
         );
-        let moved = reembed(pos, hints, topo, fixed, proj, &bad, &mut failed);
+        let moved = reembed(pos, hints, topo, fixed, slides, proj, &bad, &mut failed);
         tracing::debug!(
             ms = t0.elapsed().as_secs_f64() * 1e3,
             moved,
@@ -337,6 +342,12 @@ const MEMBRANE_RINGS: usize = 6;
 /// follow).
 const RINGS: &[usize] = &[1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16];
 
+/// Circles of [`reembed`]'s last attempt at most, each [`CIRCLE_GROWTH`] times the last.
+const CIRCLES: i32 = 10;
+
+/// Growth of the radius from one circle to the next.
+const CIRCLE_GROWTH: f64 = 1.5;
+
 /// Sweeps of the membrane solve in [`reembed`].
 const MEMBRANE_SWEEPS: usize = 60;
 
@@ -354,19 +365,30 @@ fn saved_hint(free: &[u32], saved: &[(DVec3, u32)], v: u32) -> u32 {
         .map_or(u32::MAX, |i| saved[i].1)
 }
 
-/// Re-embeds the neighbourhood of each connected group of `bad` faces: the free vertices
-/// within `k` rings (`k = 1..=4`, until the group is repaired) take the membrane (uniform
-/// Laplacian, Gauss-Seidel) spanned by the ring around them, which projected onto the
-/// input's tangent plane is Tutte's barycentric embedding (fold-free for a convex ring,
-/// Floater 1997), and are projected onto the input. A re-embedding is kept only if it lowers
+/// Re-embeds the neighbourhood of each connected group of `bad` faces, trying in turn
+/// until the group is repaired, for `k` in [`RINGS`]:
+/// - the free vertices within `k` rings take the membrane (uniform Laplacian, Gauss-Seidel)
+///   spanned by the ring around them, which projected onto the input's tangent plane is
+///   Tutte's barycentric embedding (fold-free for a convex ring, Floater 1997), and are
+///   projected onto the input (`k` up to [`MEMBRANE_RINGS`]);
+/// - the same disc re-embedded in a flattening of the input ([`flat_reembed`]);
+///
+/// then, the disc being every remesh vertex of the flattening inside a circle around the
+/// group (growing by [`CIRCLE_GROWTH`], at most [`CIRCLES`] times), whose boundary is
+/// nearly convex even where the remesh is crushed in the flattening, re-embedded there,
+/// with the disc's `slides` vertices sliding along the input's boundary ([`RimRun`]).
+/// (Sliding in the discs of rings as well repairs no more faces on the corpus.)
+/// A re-embedding is kept only if it lowers
 /// the number of bad faces of the disc without pulling faces off the input. Returns the
 /// number of vertices moved. Groups in `failed` whose corners are where they were when they
 /// failed are skipped; groups that fail are added with their corners' positions.
+#[allow(clippy::too_many_arguments)]
 fn reembed(
     pos: &mut [DVec3],
     hints: &mut [u32],
     topo: &Topology,
     fixed: &[bool],
+    slides: &[bool],
     proj: &Projector,
     bad: &[u32],
     failed: &mut std::collections::HashMap<Vec<u32>, Vec<DVec3>>,
@@ -442,6 +464,56 @@ fn reembed(
         // The input under the largest disc, flattened once for every disc.
         let widest = RINGS.last().map_or(0, |&k| k + 1);
         let patch = Patch::under(pos, hints, &grow(widest), proj);
+        let faces_around = |verts: &[u32]| {
+            let mut faces: Vec<u32> = verts
+                .iter()
+                .flat_map(|&v| topo.vertex_faces(v as usize).iter().copied())
+                .collect();
+            faces.sort_unstable();
+            faces.dedup();
+            faces
+        };
+        let score = |pos: &[DVec3], hints: &[u32], disc_faces: &[u32]| {
+            let mut nbad = 0;
+            let mut dev = 0.0f64;
+            let mut len = 0.0;
+            for &f in disc_faces {
+                let fv = topo.face_vertices(f as usize);
+                if bad_face(fv, pos, hints, proj, BAD_ANGLE) {
+                    nbad += 1;
+                }
+                let c = fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64;
+                let (q, _) = proj.closest_near(c, &face_hints(fv, hints));
+                dev = dev.max(q.distance(c));
+                len += pos[fv[0] as usize].distance(pos[fv[1] as usize]);
+            }
+            (nbad, dev, len / disc_faces.len().max(1) as f64)
+        };
+        let save = |movable: &[u32], pos: &[DVec3], hints: &[u32]| -> Vec<(DVec3, u32)> {
+            movable
+                .iter()
+                .map(|&v| (pos[v as usize], hints[v as usize]))
+                .collect()
+        };
+        // A re-embedding of the `movable` vertices (`saved`: where they were) is kept if
+        // it lowers the bad faces around them without pulling faces off the input;
+        // otherwise they are restored.
+        let keep = |pos: &mut [DVec3],
+                    hints: &mut [u32],
+                    movable: &[u32],
+                    saved: &[(DVec3, u32)],
+                    faces: &[u32],
+                    before: (usize, f64, f64)| {
+            let after = score(pos, hints, faces);
+            let better = after.0 < before.0 && after.1 <= before.1.max(0.05 * before.2);
+            if !better {
+                for (&v, &(p, t)) in movable.iter().zip(saved) {
+                    pos[v as usize] = p;
+                    hints[v as usize] = t;
+                }
+            }
+            better
+        };
         for &k in RINGS {
             let verts = grow(k);
             let free: Vec<u32> = verts
@@ -452,47 +524,10 @@ fn reembed(
             if free.is_empty() {
                 continue;
             }
-            let mut disc_faces: Vec<u32> = free
-                .iter()
-                .flat_map(|&v| topo.vertex_faces(v as usize).iter().copied())
-                .collect();
-            disc_faces.sort_unstable();
-            disc_faces.dedup();
-            let score = |pos: &[DVec3], hints: &[u32]| {
-                let mut nbad = 0;
-                let mut dev = 0.0f64;
-                let mut len = 0.0;
-                for &f in &disc_faces {
-                    let fv = topo.face_vertices(f as usize);
-                    if bad_face(fv, pos, hints, proj, BAD_ANGLE) {
-                        nbad += 1;
-                    }
-                    let c = fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64;
-                    let (q, _) = proj.closest_near(c, &face_hints(fv, hints));
-                    dev = dev.max(q.distance(c));
-                    len += pos[fv[0] as usize].distance(pos[fv[1] as usize]);
-                }
-                (nbad, dev, len / disc_faces.len().max(1) as f64)
-            };
+            let disc_faces = faces_around(&free);
             // The disc's score as it is (the flat re-embedding needs it only if it succeeds).
-            let mut before = (k <= MEMBRANE_RINGS).then(|| score(pos, hints));
-            let saved: Vec<(DVec3, u32)> = free
-                .iter()
-                .map(|&v| (pos[v as usize], hints[v as usize]))
-                .collect();
-            // A re-embedding is kept if it lowers the disc's bad faces without pulling faces
-            // off the input; otherwise the disc is restored.
-            let keep = |pos: &mut [DVec3], hints: &mut [u32], before: (usize, f64, f64)| {
-                let after = score(pos, hints);
-                let better = after.0 < before.0 && after.1 <= before.1.max(0.05 * before.2);
-                if !better {
-                    for (&v, &(p, t)) in free.iter().zip(&saved) {
-                        pos[v as usize] = p;
-                        hints[v as usize] = t;
-                    }
-                }
-                better
-            };
+            let mut before = (k <= MEMBRANE_RINGS).then(|| score(pos, hints, &disc_faces));
+            let saved = save(&free, pos, hints);
             if let Some(before) = before {
                 for _ in 0..MEMBRANE_SWEEPS {
                     for &v in &free {
@@ -534,7 +569,7 @@ fn reembed(
                     pos[v as usize] = q;
                     hints[v as usize] = t;
                 }
-                if keep(pos, hints, before) {
+                if keep(pos, hints, &free, &saved, &disc_faces, before) {
                     moved += free.len();
                     repaired = true;
                     break;
@@ -545,7 +580,7 @@ fn reembed(
             let tf = std::time::Instant::now();
             let fr = patch
                 .as_ref()
-                .and_then(|pt| flat_reembed(pt, pos, hints, topo, &free, &disc_faces, proj));
+                .and_then(|pt| flat_reembed(pt, pos, hints, topo, &free, &[], &disc_faces, proj));
             tracing::trace!(
                 k,
                 free = free.len(),
@@ -554,15 +589,85 @@ fn reembed(
                 "flat attempt"
             );
             if let Some(moves) = fr {
-                let before = *before.get_or_insert_with(|| score(pos, hints));
+                let before = *before.get_or_insert_with(|| score(pos, hints, &disc_faces));
                 for (&v, &(p, t)) in free.iter().zip(&moves) {
                     pos[v as usize] = p;
                     hints[v as usize] = t;
                 }
-                if keep(pos, hints, before) {
+                if keep(pos, hints, &free, &saved, &disc_faces, before) {
                     moved += free.len();
                     repaired = true;
                     break;
+                }
+            }
+        }
+        // Where the remesh around the group is crushed in the flattening (a fold wider than
+        // the discs of rings), the disc is every remesh vertex in a growing circle of the
+        // flattening: its boundary is then nearly convex, and Tutte's embedding spanned by
+        // it does not fold.
+        if let (false, Some(pt)) = (repaired, patch.as_ref()) {
+            let candidates = grow(widest);
+            let flat: Vec<Option<DVec2>> = candidates
+                .iter()
+                .map(|&v| pt.flat_vertex(proj, pos[v as usize], hints[v as usize]))
+                .collect();
+            let group: Vec<DVec2> = faces
+                .iter()
+                .flat_map(|&f| topo.face_vertices(f as usize))
+                .filter_map(|&v| {
+                    let i = candidates.iter().position(|&w| w == v)?;
+                    flat[i]
+                })
+                .collect();
+            if !group.is_empty() {
+                let c = group.iter().copied().sum::<DVec2>() / group.len() as f64;
+                let r0 = group.iter().map(|p| p.distance(c)).fold(0.0, f64::max);
+                let mut last = 0;
+                for j in 1..=CIRCLES {
+                    let rho = (r0.max(1e-3) * CIRCLE_GROWTH.powi(j)).min(2.0);
+                    let inside: Vec<u32> = candidates
+                        .iter()
+                        .zip(&flat)
+                        .filter(|(_, p)| p.is_some_and(|p| p.distance(c) < rho))
+                        .map(|(&v, _)| v)
+                        .collect();
+                    if inside.len() == last {
+                        continue;
+                    }
+                    last = inside.len();
+                    let free: Vec<u32> = inside
+                        .iter()
+                        .copied()
+                        .filter(|&v| {
+                            !fixed[v as usize] && !topo.vertex_edges(v as usize).is_empty()
+                        })
+                        .collect();
+                    let runs = rim_runs(&inside, topo, slides);
+                    let mut movable = free.clone();
+                    movable.extend(runs.iter().flat_map(|r| r.verts.iter().copied()));
+                    if free.is_empty() {
+                        continue;
+                    }
+                    let disc_faces = faces_around(&movable);
+                    let Some(moves) =
+                        flat_reembed(pt, pos, hints, topo, &free, &runs, &disc_faces, proj)
+                    else {
+                        continue;
+                    };
+                    let before = score(pos, hints, &disc_faces);
+                    let saved = save(&movable, pos, hints);
+                    for (&v, &(p, t)) in movable.iter().zip(&moves) {
+                        pos[v as usize] = p;
+                        hints[v as usize] = t;
+                    }
+                    if keep(pos, hints, &movable, &saved, &disc_faces, before) {
+                        moved += movable.len();
+                        repaired = true;
+                        break;
+                    }
+                    if rho >= 2.0 {
+                        break;
+                    }
                 }
             }
         }
@@ -571,6 +676,70 @@ fn reembed(
         }
     }
     moved
+}
+
+/// The chains of `slides` vertices among `verts` along the remesh boundary, each between
+/// the boundary vertices (not sliding, or outside `verts`) before and after it; closed
+/// chains (a whole hole's rim) and vertices without exactly two boundary edges stay.
+fn rim_runs(verts: &[u32], topo: &Topology, slides: &[bool]) -> Vec<RimRun> {
+    if slides.is_empty() {
+        return Vec::new();
+    }
+    let bnext = |v: u32| -> Option<[u32; 2]> {
+        let mut out = [u32::MAX; 2];
+        let mut n = 0;
+        for &e in topo.vertex_edges(v as usize) {
+            if topo.is_boundary_edge(e as usize) {
+                if n == 2 {
+                    return None;
+                }
+                out[n] = topo.other_vertex(e as usize, v);
+                n += 1;
+            }
+        }
+        (n == 2).then_some(out)
+    };
+    let in_disc: std::collections::HashSet<u32> = verts
+        .iter()
+        .copied()
+        .filter(|&v| slides.get(v as usize) == Some(&true) && bnext(v).is_some())
+        .collect();
+    let mut done: std::collections::HashSet<u32> = Default::default();
+    let mut runs = Vec::new();
+    for &v in verts {
+        if !in_disc.contains(&v) || done.contains(&v) {
+            continue;
+        }
+        // Back to the chain's start, then forward to its end.
+        let walk = |from: u32, prev: u32| -> (Vec<u32>, u32) {
+            let mut chain = vec![from];
+            let (mut cur, mut prev) = (from, prev);
+            while let Some(nb) = bnext(cur) {
+                let nxt = if nb[0] == prev { nb[1] } else { nb[0] };
+                if !in_disc.contains(&nxt) || nxt == from {
+                    return (chain, nxt);
+                }
+                chain.push(nxt);
+                prev = cur;
+                cur = nxt;
+            }
+            (chain, u32::MAX)
+        };
+        let Some(nb) = bnext(v) else { continue };
+        let (back, a) = walk(v, nb[1]);
+        let (fwd, b) = walk(v, nb[0]);
+        done.extend(back.iter().chain(&fwd).copied());
+        if a == v || b == v || a == u32::MAX || b == u32::MAX || a == b {
+            continue; // closed, or no anchor
+        }
+        let mut chain: Vec<u32> = back.into_iter().rev().collect();
+        chain.extend_from_slice(&fwd[1..]);
+        runs.push(RimRun {
+            anchors: [a, b],
+            verts: chain,
+        });
+    }
+    runs
 }
 
 /// The centre of the kernel of vertex `v`'s star in the plane through `p` with unit normal

@@ -429,8 +429,16 @@ pub fn remesh_with_progress(
         let mut base_fixed = vec![false; fine.len()];
         base_fixed[..nb].fill(true);
         let topo = &h.topologies[opts.levels as usize];
-        let fr =
-            fold_repair::repair_folds(&mut fine, &mut hints, topo, &base_fixed, &proj, 12, None);
+        let fr = fold_repair::repair_folds(
+            &mut fine,
+            &mut hints,
+            topo,
+            &base_fixed,
+            &[],
+            &proj,
+            12,
+            None,
+        );
         tracing::debug!(?fr, "fold repair after shrink-wrapping");
         flipped_after = fr.flipped_after;
     } else {
@@ -471,11 +479,25 @@ pub fn remesh_with_progress(
         let suspects = resample::untangle_bad(&mut fine, &mut hints, topo, &pinned, &proj, 12);
         // Last, the faces still flipped or degenerate: vertices into their stars' kernels,
         // discs re-embedded.
+        // Vertices on the remesh boundary below the base level may slide along the input's
+        // boundary where a fold next to a hole needs it.
+        let nb = h.base.positions.len();
+        let slides: Vec<bool> = (0..fine.len())
+            .map(|v| {
+                v >= nb
+                    && pinned[v]
+                    && topo
+                        .vertex_edges(v)
+                        .iter()
+                        .any(|&e| topo.is_boundary_edge(e as usize))
+            })
+            .collect();
         let fr = fold_repair::repair_folds(
             &mut fine,
             &mut hints,
             topo,
             &pinned,
+            &slides,
             &proj,
             12,
             Some(&suspects),
