@@ -29,6 +29,10 @@ mod wavelet;
 
 use subwave::io::Format;
 
+/// Large buffers in transparent huge pages (fewer first-touch page faults; `subwave::alloc`).
+#[global_allocator]
+static ALLOC: subwave::alloc::HugePages = subwave::alloc::HugePages;
+
 /// Exit code for bad input and every other runtime error.
 const EXIT_ERROR: u8 = 1;
 

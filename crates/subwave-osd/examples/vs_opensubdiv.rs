@@ -18,6 +18,10 @@ use subwave::subdivision::profile::{peak_rss_mb, profile_subdivide, reset_peak_r
 use subwave::subdivision::{BoundaryMode, Scheme, SubdivideOptions};
 use subwave_osd::{refine_timed, OsdOptions, OsdScheme};
 
+/// Large buffers in transparent huge pages (fewer first-touch page faults; `subwave::alloc`).
+#[global_allocator]
+static ALLOC: subwave::alloc::HugePages = subwave::alloc::HugePages;
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();

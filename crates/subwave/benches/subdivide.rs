@@ -10,6 +10,10 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use subwave::subdivision::{subdivide, BoundaryMode, Refinement, Scheme, SubdivideOptions};
 use subwave::Mesh;
 
+/// Large buffers in transparent huge pages (fewer first-touch page faults; `subwave::alloc`).
+#[global_allocator]
+static ALLOC: subwave::alloc::HugePages = subwave::alloc::HugePages;
+
 fn bunny() -> Option<Mesh> {
     let path = std::env::var_os("SUBWAVE_BUNNY").map_or_else(
         || PathBuf::from("/work/shared/data/meshes/stanford-bunny.obj"),

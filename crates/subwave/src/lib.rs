@@ -14,9 +14,12 @@
 //! - [`hierarchy`]: semi-regular meshes (subdivision connectivity, its detection);
 //! - [`remesh`]: any mesh to subdivision connectivity (MAPS, shrink-wrapping), repair;
 //! - [`wavelet`]: wavelet transforms on semi-regular meshes (triangle wavelets of Maret ch. 4,
-//!   Bertram et al.'s B-spline wavelets).
+//!   Bertram et al.'s B-spline wavelets);
+//! - [`alloc`]: a global allocator putting large buffers in transparent huge pages, for
+//!   binaries that opt in.
 #![warn(missing_docs)]
 
+pub mod alloc;
 pub mod codec;
 pub mod distance;
 pub mod error;

@@ -1638,7 +1638,7 @@ impl TreeDecoder {
             return Err(derr(0, format!("tree {t} is not in the stream")));
         };
         if chunk.len() > e.len as usize
-            || (chunk.len() == e.len as usize && container::crc32(chunk) != e.crc)
+            || (chunk.len() == e.len as usize && !container::crc_matches(chunk, e.crc))
         {
             return Err(derr(
                 e.offset as usize,
