@@ -200,7 +200,9 @@ impl<'a> ParamMap<'a> {
         self.charts[t as usize].iter().copied()
     }
 
-    /// Locates a base-domain point on the input.
+    /// Locates a base-domain point on the input: the input triangle whose image in the
+    /// frame of the point's base triangle contains it, or the nearest image there
+    /// ([`Located::inside`] negative).
     pub fn locate(&self, p: &Param) -> Located {
         let t = p.face as usize;
         let (x, y) = (p.bary[1], p.bary[2]);
@@ -227,6 +229,40 @@ impl<'a> ParamMap<'a> {
                 consider(&mut best, e);
             }
         }
+        Self::located(best)
+    }
+
+    /// The point in the frames of the base triangles of its triangle's chart, among the
+    /// images registered there: where a base vertex's unfoldings disagree (the
+    /// parallelogram charts do not close up around a vertex of valence other than six), an
+    /// image that straddles base triangles can reach into `p.face` in a neighbour's frame
+    /// although it does not in `p.face`'s own, leaving a gap there. The nearest image over
+    /// those frames (`None` for a point whose chart holds no images).
+    pub fn locate_around(&self, p: &Param) -> Option<Located> {
+        let t = p.face as usize;
+        let mut best: Option<(f64, Entry, [f64; 3])> = None;
+        for &(n, _) in &self.charts[t] {
+            let Some(m) = self.charts[n as usize]
+                .iter()
+                .find(|(f, _)| *f as usize == t)
+                .map(|x| x.1)
+            else {
+                continue;
+            };
+            let b = mul(&m, p.bary);
+            for e in &self.entries[n as usize] {
+                let l = bary2(e.xy, b[1], b[2]);
+                let mm = l[0].min(l[1]).min(l[2]);
+                if best.as_ref().is_none_or(|(bm, _, _)| mm > *bm) {
+                    best = Some((mm, *e, l));
+                }
+            }
+        }
+        best.is_some().then(|| Self::located(best))
+    }
+
+    /// The located point of the best entry (clamped and normalized coordinates).
+    fn located(best: Option<(f64, Entry, [f64; 3])>) -> Located {
         match best {
             Some((m, e, l)) => {
                 let mut l = l.map(|v| v.max(0.0));
