@@ -37,10 +37,11 @@ pub struct RepairReport {
     pub added_vertices: usize,
 }
 
-/// The triangles of `mesh` ready for remeshing: polygons fanned ([`triangulate`]), degenerate triangles (a
-/// repeated vertex, area below `1e-14 · diagonal²`, or the vertex set of an earlier triangle)
-/// and unreferenced vertices removed and,
-/// if `repair`, non-manifold edges and vertices cut (see the module documentation).
+/// The triangles of `mesh` ready for remeshing: polygons fanned (a quad along a diagonal
+/// that is not already an edge), degenerate triangles (a repeated vertex, area below
+/// `1e-14 · diagonal²`, or the vertex set of an earlier triangle) and unreferenced vertices
+/// removed and, if `repair`, non-manifold edges and vertices cut (see the module
+/// documentation).
 ///
 /// Returns the positions, the triangles and the report.
 ///
