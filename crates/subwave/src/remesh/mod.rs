@@ -158,8 +158,9 @@ pub struct Remeshed {
     pub quality: Quality,
     /// What the input preparation changed.
     pub repair: RepairReport,
-    /// Base-domain points that fell outside every input triangle's image and took the
-    /// nearest one (MAPS only).
+    /// Base-domain points farther than 0.02 (barycentric) from every input triangle's image,
+    /// in their base triangle's frame and in the frames around it, which took the closest
+    /// input point of their point on the base mesh (MAPS only).
     pub param_misses: usize,
     /// Warnings for the user (degenerate faces removed, fallbacks taken).
     pub warnings: Vec<String>,
@@ -308,7 +309,25 @@ pub fn remesh_with_progress(
     let mut h = Hierarchy::new(&base, opts.levels, split, None)?;
     let params = resample::level_params(&h, opts.levels as usize, opts.quads);
     let located: Vec<param::Located> = params.par_iter().map(|p| map.locate(p)).collect();
-    let param_misses = located.iter().filter(|l| l.inside < -0.02).count();
+    // Points outside every image registered in their base triangle: the nearest image in
+    // the frames of the triangles around it.
+    let around: Vec<Option<param::Located>> = located
+        .par_iter()
+        .zip(&params)
+        .map(|(l, p)| {
+            if l.inside >= -OUTSIDE {
+                None
+            } else {
+                map.locate_around(p)
+                    .filter(|a| a.inside > l.inside && a.inside >= -NEAR_IMAGE)
+            }
+        })
+        .collect();
+    let param_misses = located
+        .iter()
+        .zip(&around)
+        .filter(|(l, a)| l.inside < -NEAR_IMAGE && a.is_none())
+        .count();
     if tracing::enabled!(tracing::Level::DEBUG) {
         let diag = prepared.diagonal();
         let errs: Vec<f64> = s
@@ -337,21 +356,7 @@ pub fn remesh_with_progress(
         chain_edges = s.chain_edges.len(),
         "parameterization"
     );
-    // Each vertex's position and an input triangle near it (the hint of the closest-point
-    // queries below).
-    let (mut fine, mut hints): (Vec<DVec3>, Vec<u32>) = located
-        .par_iter()
-        .zip(&params)
-        .map(|(l, p)| match map.point(l) {
-            Some(q) if l.inside >= -0.02 => (q, l.tri),
-            _ => {
-                // Outside every image: the closest input point of the base-surface point.
-                let t = s.triangles[p.face as usize];
-                let b: DVec3 = (0..3).map(|k| s.positions[t[k] as usize] * p.bary[k]).sum();
-                proj.closest_near(b, &[l.tri])
-            }
-        })
-        .unzip();
+    let (mut fine, mut hints) = initial_positions(&map, &located, &around, &params, &s, &proj);
     // Base vertices are input vertices; vertices on boundary and feature base edges follow
     // the input's chain between them (1D parameterization along the chain).
     let chains = chain_polylines(&s, &pos);
@@ -564,6 +569,46 @@ pub fn remesh_with_progress(
     })
 }
 
+/// Points whose coordinates in the nearest image are below `-OUTSIDE` are outside it.
+const OUTSIDE: f64 = 1e-6;
+
+/// Points within this (barycentric) distance of an image are mapped through it, clamped.
+const NEAR_IMAGE: f64 = 0.02;
+
+/// Each resampled point's position on the input and an input triangle near it (the hint of
+/// later closest-point queries): the image of its parameter through the nearest image, in
+/// its base triangle's frame or in the frames around it (`around`,
+/// [`param::ParamMap::locate_around`]), clamped, if that is within [`NEAR_IMAGE`]; else (outside
+/// every image) the closest input point of its point on the base mesh.
+fn initial_positions(
+    map: &param::ParamMap,
+    located: &[param::Located],
+    around: &[Option<param::Located>],
+    params: &[simplify::Param],
+    s: &simplify::Simplified,
+    proj: &resample::Projector,
+) -> (Vec<DVec3>, Vec<u32>) {
+    located
+        .par_iter()
+        .zip(around)
+        .zip(params)
+        .map(|((l, a), p)| {
+            let l = match a {
+                Some(a) if a.inside > l.inside => a,
+                _ => l,
+            };
+            match map.point(l) {
+                Some(q) if l.inside >= -NEAR_IMAGE => (q, l.tri),
+                _ => {
+                    let t = s.triangles[p.face as usize];
+                    let b: DVec3 = (0..3).map(|k| s.positions[t[k] as usize] * p.bary[k]).sum();
+                    proj.closest_near(b, &[l.tri])
+                }
+            }
+        })
+        .unzip()
+}
+
 /// For each chain base edge (sorted vertex pair), the input chain vertices parameterized on
 /// it as `(parameter from the smaller to the larger base vertex, position)`, sorted, with the
 /// two base vertices at 0 and 1.
@@ -601,22 +646,12 @@ fn chain_polylines(
             }
         }
     }
-    // Sorted by their parameter, re-parameterized by arc length so resampled points spread
-    // evenly along the curve.
+    // Sorted by their parameter. The parameter is the one the simplification tracked, as for
+    // the points beside the chain: re-parameterizing by arc length (evenly spread boundary
+    // vertices) sheared the first rows of faces along boundaries and creases against the
+    // interior, which follows the tracked parameterization, and folded them.
     for line in out.values_mut() {
         line.sort_by(|x, y| x.0.total_cmp(&y.0));
-        let mut acc = 0.0;
-        let mut arc = Vec::with_capacity(line.len());
-        arc.push(0.0);
-        for w in line.windows(2) {
-            acc += w[0].1.distance(w[1].1);
-            arc.push(acc);
-        }
-        if acc > 0.0 {
-            for (x, a) in line.iter_mut().zip(arc) {
-                x.0 = a / acc;
-            }
-        }
     }
     out
 }

@@ -200,7 +200,9 @@ impl<'a> ParamMap<'a> {
         self.charts[t as usize].iter().copied()
     }
 
-    /// Locates a base-domain point on the input.
+    /// Locates a base-domain point on the input: the input triangle whose image in the
+    /// frame of the point's base triangle contains it, or the nearest image there
+    /// ([`Located::inside`] negative).
     pub fn locate(&self, p: &Param) -> Located {
         let t = p.face as usize;
         let (x, y) = (p.bary[1], p.bary[2]);
@@ -227,6 +229,40 @@ impl<'a> ParamMap<'a> {
                 consider(&mut best, e);
             }
         }
+        Self::located(best)
+    }
+
+    /// The point in the frames of the base triangles of its triangle's chart, among the
+    /// images registered there: where a base vertex's unfoldings disagree (the
+    /// parallelogram charts do not close up around a vertex of valence other than six), an
+    /// image that straddles base triangles can reach into `p.face` in a neighbour's frame
+    /// although it does not in `p.face`'s own, leaving a gap there. The nearest image over
+    /// those frames (`None` for a point whose chart holds no images).
+    pub fn locate_around(&self, p: &Param) -> Option<Located> {
+        let t = p.face as usize;
+        let mut best: Option<(f64, Entry, [f64; 3])> = None;
+        for &(n, _) in &self.charts[t] {
+            let Some(m) = self.charts[n as usize]
+                .iter()
+                .find(|(f, _)| *f as usize == t)
+                .map(|x| x.1)
+            else {
+                continue;
+            };
+            let b = mul(&m, p.bary);
+            for e in &self.entries[n as usize] {
+                let l = bary2(e.xy, b[1], b[2]);
+                let mm = l[0].min(l[1]).min(l[2]);
+                if best.as_ref().is_none_or(|(bm, _, _)| mm > *bm) {
+                    best = Some((mm, *e, l));
+                }
+            }
+        }
+        best.is_some().then(|| Self::located(best))
+    }
+
+    /// The located point of the best entry (clamped and normalized coordinates).
+    fn located(best: Option<(f64, Entry, [f64; 3])>) -> Located {
         match best {
             Some((m, e, l)) => {
                 let mut l = l.map(|v| v.max(0.0));
@@ -319,6 +355,17 @@ fn build_grid(entries: &[Entry]) -> (u32, Vec<u32>, Vec<u32>) {
 
 /// The chart of base triangle `t`: every triangle sharing a vertex with it, reached by
 /// edge-adjacent unfoldings (breadth first), with its corners' coordinates in `t`'s frame.
+///
+/// The parallelogram unfolding gives every triangle 60° at each corner, so the triangles
+/// around a base vertex of valence `n` span `n · 60°` rather than a turn: an input triangle
+/// with a corner at a base vertex that spans three of its triangles has a flat or inverted
+/// image, and nearly all the images left folded after [`untangle_params`] are such (5
+/// levels: suzanne 26 of 34, cow 10 of 12, fandisk 9 of 9). Two remedies were measured
+/// and not kept: images around a base vertex in its own star flattening (folded images
+/// 34 → 9 on suzanne, but the charts then disagree on the base edges between images taken
+/// in different charts: suzanne's flipped faces 44 → 261), and isometric unfoldings (each
+/// triangle's true shape; bunny 10 → 4, rocker-arm 4 → 0 flipped faces, but cow 51 → 151 and
+/// teapot 40 → 144, where slivers of the base unfold wildly).
 fn build_chart(topo: &Topology, tris: &[[u32; 3]], t: usize) -> Vec<(u32, Mat)> {
     let tv = tris[t];
     let near = |f: usize| tris[f].iter().any(|v| tv.contains(v));
@@ -471,6 +518,52 @@ fn image_area(
     None
 }
 
+/// The parameter of chain point `v` (on a base edge, not a base vertex) moved along its
+/// base edge to the mean of the edge parameters of its two neighbours `nb` on that edge's
+/// line (points of the same edge or its end vertices); `None` unless there are exactly two.
+fn slide_on_edge(
+    charts: &[Vec<(u32, Mat)>],
+    base_tris: &[[u32; 3]],
+    params: &[Param],
+    nb: &[u32],
+    v: usize,
+) -> Option<Param> {
+    let p = params[v];
+    let k = p.bary.iter().position(|&x| x == 0.0)?;
+    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+    let mut along = [0.0f64; 2];
+    let mut n = 0;
+    for &w in nb {
+        let q = params[w as usize];
+        let on_edge = q.bary.contains(&1.0) || q.bary.contains(&0.0);
+        if !on_edge {
+            continue;
+        }
+        let Some(b) = frame_of(charts, base_tris, p.face, &q) else {
+            continue;
+        };
+        if b[k].abs() > 1e-12 || b[i] < -1e-12 || b[j] < -1e-12 {
+            continue;
+        }
+        if n == 2 {
+            return None;
+        }
+        along[n] = b[j];
+        n += 1;
+    }
+    if n != 2 {
+        return None;
+    }
+    let s = (0.5 * (along[0] + along[1])).clamp(0.0, 1.0);
+    if s <= 0.0 || s >= 1.0 {
+        return None;
+    }
+    let mut bary = [0.0; 3];
+    bary[i] = 1.0 - s;
+    bary[j] = s;
+    Some(Param { face: p.face, bary })
+}
+
 /// Gauss-Seidel sweeps of [`untangle_params`] per round.
 const TUTTE_SWEEPS: usize = 30;
 
@@ -483,8 +576,11 @@ const TUTTE_SWEEPS: usize = 30;
 /// barycentric embedding, Gauss-Seidel, in the chart of the vertex's base triangle or of a
 /// neighbour's), which embeds a disc with a convex boundary without folds (Floater 1997); as
 /// the regions' boundaries need not be convex, a move is kept only if it does not add bad
-/// triangles around the vertex, so the count never grows. `fixed` vertices (base vertices,
-/// boundary and feature points on their chains) keep their parameters.
+/// triangles around the vertex, so the count never grows. `fixed` vertices keep their
+/// parameters, except those on a base edge (boundary and feature points on their chains),
+/// which slide along it to the mean of their two neighbours on it (in 1D, kept only if
+/// that lowers the bad triangles around them); base vertices stay. The images left bad
+/// are nearly all at base vertices (see `build_chart`).
 ///
 /// Returns the number of bad input triangles before and after.
 ///
@@ -551,6 +647,13 @@ pub fn untangle_params(
             }
         }
         let verts: Vec<usize> = (0..nv).filter(|&v| region[v] && !fixed[v]).collect();
+        // Fixed points on a base edge (not base vertices): the chain points.
+        let chain_verts: Vec<usize> = (0..nv)
+            .filter(|&v| {
+                let b = params[v].bary;
+                region[v] && fixed[v] && !b.contains(&1.0) && b.contains(&0.0)
+            })
+            .collect();
         let mut stuck = 0;
         for _ in 0..TUTTE_SWEEPS {
             for &v in &verts {
@@ -607,8 +710,31 @@ pub fn untangle_params(
                     None => stuck += 1,
                 }
             }
+            // Chain points slide along their base edge, to the mean of their two
+            // neighbours on the same edge (Tutte's embedding of the chain, in 1D).
+            for &v in &chain_verts {
+                let Some(p) = slide_on_edge(&charts, &base_tris, params, &nb[v], v) else {
+                    continue;
+                };
+                let count = |params: &[Param]| {
+                    vf[v]
+                        .iter()
+                        .filter(|&&f| is_bad(params, input_tris[f as usize]))
+                        .count()
+                };
+                let now = count(params);
+                let old = params[v];
+                params[v] = p;
+                if count(params) >= now {
+                    params[v] = old;
+                }
+            }
         }
-        let mut faces: Vec<u32> = verts.iter().flat_map(|&v| vf[v].iter().copied()).collect();
+        let mut faces: Vec<u32> = verts
+            .iter()
+            .chain(&chain_verts)
+            .flat_map(|&v| vf[v].iter().copied())
+            .collect();
         faces.extend_from_slice(&bad_faces);
         faces.sort_unstable();
         faces.dedup();
@@ -625,6 +751,31 @@ pub fn untangle_params(
             region = verts.len(),
             stuck,
             "parameter untangling"
+        );
+    }
+    if tracing::enabled!(tracing::Level::DEBUG) {
+        let at_base_vertex = bad_faces
+            .iter()
+            .filter(|&&f| {
+                input_tris[f as usize]
+                    .iter()
+                    .any(|&v| params[v as usize].bary.contains(&1.0))
+            })
+            .count();
+        let at_chain = bad_faces
+            .iter()
+            .filter(|&&f| {
+                input_tris[f as usize].iter().any(|&v| {
+                    let b = params[v as usize].bary;
+                    fixed[v as usize] && !b.contains(&1.0)
+                })
+            })
+            .count();
+        tracing::debug!(
+            after,
+            at_base_vertex,
+            at_chain,
+            "folded input-triangle images left"
         );
     }
     // Faces outside the regions did not change.

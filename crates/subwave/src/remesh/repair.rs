@@ -37,10 +37,11 @@ pub struct RepairReport {
     pub added_vertices: usize,
 }
 
-/// The triangles of `mesh` ready for remeshing: polygons fanned, degenerate triangles (a
-/// repeated vertex, area below `1e-14 · diagonal²`, or the vertex set of an earlier triangle)
-/// and unreferenced vertices removed and,
-/// if `repair`, non-manifold edges and vertices cut (see the module documentation).
+/// The triangles of `mesh` ready for remeshing: polygons fanned (a quad along a diagonal
+/// that is not already an edge), degenerate triangles (a repeated vertex, area below
+/// `1e-14 · diagonal²`, or the vertex set of an earlier triangle) and unreferenced vertices
+/// removed and, if `repair`, non-manifold edges and vertices cut (see the module
+/// documentation).
 ///
 /// Returns the positions, the triangles and the report.
 ///
@@ -54,7 +55,7 @@ pub fn prepare(mesh: &Mesh, repair: bool) -> Result<(Vec<DVec3>, Vec<[u32; 3]>, 
     let mut report = RepairReport::default();
     let diag = mesh.diagonal();
     let min_area2 = (1e-14 * diag * diag).powi(2);
-    let (tris, _) = mesh.triangulate();
+    let tris = triangulate(mesh);
     let mut kept = Vec::with_capacity(tris.len());
     let mut seen = std::collections::HashSet::with_capacity(tris.len());
     for t in tris {
@@ -117,6 +118,42 @@ pub fn prepare(mesh: &Mesh, repair: bool) -> Result<(Vec<DVec3>, Vec<[u32; 3]>, 
     report.flipped_faces = flipped;
     report.added_vertices = added;
     Ok((positions, tris, report))
+}
+
+/// The triangles of `mesh`'s faces: polygons fanned from their first corner, except that a
+/// quad whose diagonal from its first corner is already an edge of the mesh (or another
+/// quad's diagonal) is split along its other diagonal. Fanning such a quad makes that edge
+/// non-manifold: Suzanne's two quads `(70 196 138 137)` and `(70 137 138 197)` around the
+/// valence-2 vertex 137 both fanned into triangle `70 138 137`.
+fn triangulate(mesh: &Mesh) -> Vec<[u32; 3]> {
+    if mesh.faces().all(|fv| fv.len() == 3) {
+        return mesh.triangulate().0;
+    }
+    let key = |a: u32, b: u32| (a.min(b), a.max(b));
+    let mut edges: std::collections::HashSet<(u32, u32)> = std::collections::HashSet::new();
+    for fv in mesh.faces() {
+        for i in 0..fv.len() {
+            edges.insert(key(fv[i], fv[(i + 1) % fv.len()]));
+        }
+    }
+    let mut tris = Vec::with_capacity(mesh.face_indices.len());
+    for fv in mesh.faces() {
+        if fv.len() == 4 {
+            let d02 = key(fv[0], fv[2]);
+            let d13 = key(fv[1], fv[3]);
+            if edges.contains(&d02) && !edges.contains(&d13) {
+                edges.insert(d13);
+                tris.push([fv[0], fv[1], fv[3]]);
+                tris.push([fv[1], fv[2], fv[3]]);
+                continue;
+            }
+            edges.insert(d02);
+        }
+        for i in 1..fv.len().saturating_sub(1) {
+            tris.push([fv[0], fv[i], fv[i + 1]]);
+        }
+    }
+    tris
 }
 
 /// Like [`Mesh::check_indices`] but lets faces repeat a vertex (they are removed as
