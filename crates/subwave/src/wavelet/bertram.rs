@@ -51,6 +51,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
+use super::floor_div_const;
+
 use crate::mesh::Mesh;
 use crate::subdivision::stencil::Interpolate;
 use crate::subdivision::{Refinement, Scheme, SubdivideOptions};
@@ -750,19 +752,6 @@ fn par_chunks_small<I: IntCoord, F: Fn(usize, &mut [[I; 3]]) + Sync + Send>(
             }
         });
     !big.load(Ordering::Relaxed)
-}
-
-/// `⌊n / D⌋` for a compile-time `D > 0`: a shift for the power-of-two part, a division by the
-/// odd part (a multiplication after compilation).
-#[inline(always)]
-fn floor_div_const<const D: i64>(n: i64) -> i64 {
-    let k = D.trailing_zeros();
-    let c = D >> k;
-    if c == 1 {
-        n >> k
-    } else {
-        (n >> k).div_euclid(c)
-    }
 }
 
 /// `x ± [p(p sx + q sy) / q²]` (`+` forward, `−` inverse): the rounded term of the

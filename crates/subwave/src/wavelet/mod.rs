@@ -31,3 +31,27 @@ pub mod report;
 pub mod stability;
 pub mod triangle;
 pub mod triangle_int;
+
+/// `⌊n / D⌋` for a compile-time `D > 0`: a shift for the power-of-two part, a division by the
+/// odd part `c` (a multiplication after compilation).
+///
+/// The odd division is unsigned: for `|m| < 2^58`, `⌊m / c⌋ = (m + c·2^58) / c − 2^58` with
+/// `m + c·2^58 ≥ 0`, one multiply-high and no remainder fix-up (`div_euclid` computes the
+/// quotient, the remainder and a correction; measured 10% of the quintic integer lifts).
+/// Shared by the integer lifts of [`bertram`] and [`triangle_int`].
+/// Larger `|m|`, which the regular formulas never produce (their intermediates stay below
+/// `2^58`, see `bertram::FAST_BOUND`), take `div_euclid`.
+#[inline(always)]
+pub(crate) fn floor_div_const<const D: i64>(n: i64) -> i64 {
+    let k = D.trailing_zeros();
+    let c = D >> k;
+    let m = n >> k;
+    if c == 1 {
+        m
+    } else if m.unsigned_abs() < 1 << 58 && c < 32 {
+        let bias = c << 58;
+        (((m + bias) as u64) / c as u64) as i64 - (1 << 58)
+    } else {
+        m.div_euclid(c)
+    }
+}

@@ -27,6 +27,7 @@
 
 use rayon::prelude::*;
 
+use super::floor_div_const;
 use super::triangle::{edge_face_count, RowPattern, TriangleWavelet, UpdatePlan};
 use crate::hierarchy::Hierarchy;
 use crate::subdivision::refine::Split;
@@ -403,8 +404,8 @@ impl<'h> IntTriangleWavelet<'h> {
                 // ⌊3s/(8f) + ½⌋ = ⌊(6s + 8f) / (16f)⌋; the common face counts divide by
                 // constants (multiplications after compilation).
                 let r = |n: i64| match f {
-                    6 => (n + 48).div_euclid(96),
-                    3 => (n + 24).div_euclid(48),
+                    6 => floor_div_const::<96>(n + 48),
+                    3 => floor_div_const::<48>(n + 24),
                     _ => (n + 8 * f).div_euclid(16 * f),
                 };
                 for q in 0..3 {

@@ -868,3 +868,52 @@ fn optimized_passes_match_reference() {
         }
     }
 }
+
+/// The constant floor divisions of the regular integer formulas equal `div_euclid` on both
+/// sides of zero, at the edges of the unsigned path (`|n >> k| < 2^58`) and beyond it.
+#[test]
+fn floor_div_const_equals_div_euclid() {
+    fn check<const D: i64>() {
+        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+        let mut values: Vec<i64> = Vec::new();
+        for e in [0, 1, 2, 3, 10, 40, 57] {
+            for d in -3..=3 {
+                values.push((1i64 << e) + d);
+                values.push(-(1i64 << e) + d);
+            }
+        }
+        let k = D.trailing_zeros();
+        let mut edges = vec![i64::MAX, i64::MIN + 1];
+        if let Some(e) = (1i64 << 58).checked_mul(1 << k) {
+            edges.extend([e, e - 1]);
+        }
+        for edge in edges {
+            values.extend([
+                edge,
+                edge.wrapping_neg(),
+                edge.wrapping_sub(1),
+                1i64.wrapping_sub(edge),
+            ]);
+        }
+        for _ in 0..2000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            values.push((x as i64) >> (x % 40));
+        }
+        for n in values {
+            assert_eq!(floor_div_const::<D>(n), n.div_euclid(D), "{n} / {D}");
+        }
+    }
+    check::<2>();
+    check::<4>();
+    check::<6>();
+    check::<8>();
+    check::<12>();
+    check::<18>();
+    check::<32>();
+    check::<64>();
+    check::<72>();
+    check::<512>();
+    check::<2048>();
+}
