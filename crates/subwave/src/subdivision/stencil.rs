@@ -331,12 +331,21 @@ struct Fast {
     /// face weights (Catmull-Clark): the merged weights of the vertex, of each ring vertex, of
     /// each diagonal vertex.
     quad_vertex: Vec<Option<[f64; 3]>>,
+    /// Per valence, on a level of triangles: a smooth interior vertex with uniform nonzero
+    /// edge and face weights (Catmull-Clark's first level on a triangle mesh): the merged
+    /// weights of the vertex and of each ring vertex (each triangle's corners off the vertex
+    /// are ring vertices).
+    tri_vertex: Vec<Option<[f64; 2]>>,
     /// A smooth edge between two triangles: ends and opposite vertices' weights.
     tri_edge: [f64; 4],
     /// A smooth edge between two quads: merged weights of the ends and the two faces' other
     /// vertices, `None` if a configuration the recipe does not cover (a zero end weight, or
     /// exactly one zero face weight).
     quad_edge: Option<[f64; 4]>,
+    /// A smooth edge between two triangles whose centroids are weighed (a polygon split on
+    /// triangles): merged weights of the ends and of the two opposite vertices, `None` as for
+    /// `quad_edge`.
+    tri_centroid_edge: Option<[f64; 4]>,
 }
 
 impl Fast {
@@ -351,45 +360,60 @@ impl Fast {
                     .then(|| (m.vertex, m.edges.clone()))
             })
             .collect();
-        let quad_vertex = cache
-            .smooth_vertex
-            .iter()
-            .map(|m| {
-                let (we, wf) = (*m.edges.first()?, *m.faces.first()?);
-                let uniform = m.edges.iter().all(|&w| w == we) && m.faces.iter().all(|&w| w == wf);
-                if !uniform || m.vertex == 0.0 || we == 0.0 || wf == 0.0 {
-                    return None;
-                }
-                // As `Builder::add_centroid` merges each quad's corners, face by face.
-                let q = wf / 4.0;
-                let mut v = m.vertex;
-                for _ in 0..m.faces.len() {
-                    v += q;
-                }
-                Some([v, we + q + q, q])
-            })
+        // As `Builder::add_centroid` merges each face's corners, face by face: the vertex
+        // gains `wf / arity` once per face, each ring vertex twice (its edge's two faces).
+        let centroid_vertex = |arity: usize| -> Vec<Option<(f64, f64, f64)>> {
+            cache
+                .smooth_vertex
+                .iter()
+                .map(|m| {
+                    let (we, wf) = (*m.edges.first()?, *m.faces.first()?);
+                    let uniform =
+                        m.edges.iter().all(|&w| w == we) && m.faces.iter().all(|&w| w == wf);
+                    if !uniform || m.vertex == 0.0 || we == 0.0 || wf == 0.0 {
+                        return None;
+                    }
+                    let q = wf / arity as f64;
+                    let mut v = m.vertex;
+                    for _ in 0..m.faces.len() {
+                        v += q;
+                    }
+                    Some((v, we + q + q, q))
+                })
+                .collect()
+        };
+        let quad_vertex = centroid_vertex(4)
+            .into_iter()
+            .map(|m| m.map(|(v, r, q)| [v, r, q]))
+            .collect();
+        let tri_vertex = centroid_vertex(3)
+            .into_iter()
+            .map(|m| m.map(|(v, r, _)| [v, r]))
             .collect();
         let e3 = &cache.smooth_edge[3.min(CACHED_ARITY - 1)];
         let f3 = |i: usize| e3.faces.get(i).copied().unwrap_or(0.0);
         let tri_edge = [e3.ends[0], e3.ends[1], f3(0), f3(1)];
-        let e4 = &cache.smooth_edge[4.min(CACHED_ARITY - 1)];
-        let f4 = |i: usize| e4.faces.get(i).copied().unwrap_or(0.0);
-        let (w0, w1) = (f4(0) / 4.0, f4(1) / 4.0);
-        let quad_edge = (e4.ends[0] != 0.0
-            && e4.ends[1] != 0.0
-            && (f4(0) == 0.0) == (f4(1) == 0.0))
-            .then(|| {
-                if f4(0) == 0.0 {
-                    [e4.ends[0], e4.ends[1], 0.0, 0.0]
+        // An edge between two faces whose centroids are weighed: the ends gain each face's
+        // `wf / arity`, the faces' other corners are new.
+        let centroid_edge = |arity: usize| {
+            let m = &cache.smooth_edge[arity.min(CACHED_ARITY - 1)];
+            let f = |i: usize| m.faces.get(i).copied().unwrap_or(0.0);
+            let (w0, w1) = (f(0) / arity as f64, f(1) / arity as f64);
+            (m.ends[0] != 0.0 && m.ends[1] != 0.0 && (f(0) == 0.0) == (f(1) == 0.0)).then(|| {
+                if f(0) == 0.0 {
+                    [m.ends[0], m.ends[1], 0.0, 0.0]
                 } else {
-                    [e4.ends[0] + w0 + w1, e4.ends[1] + w0 + w1, w0, w1]
+                    [m.ends[0] + w0 + w1, m.ends[1] + w0 + w1, w0, w1]
                 }
-            });
+            })
+        };
         Fast {
             ring_vertex,
             quad_vertex,
+            tri_vertex,
             tri_edge,
-            quad_edge,
+            quad_edge: centroid_edge(4),
+            tri_centroid_edge: centroid_edge(3),
         }
     }
 }
@@ -683,9 +707,55 @@ impl Level<'_> {
                 }
                 return Some(acc);
             }
+            if topo.face_arity == 3 {
+                let [wv, wr] = self.fast.tri_vertex[n]?;
+                // Each ring vertex must be in exactly two of the triangles: its edge's two.
+                for &e in edges {
+                    let e = e as usize;
+                    if topo.edge_face_offsets[e + 1] - topo.edge_face_offsets[e] != 2 {
+                        return None;
+                    }
+                }
+                acc.add_scaled(&src[v], wv);
+                for &e in edges {
+                    let r = topo.other_vertex(e as usize, v as u32);
+                    acc.add_scaled(&src[r as usize], wr);
+                }
+                return Some(acc);
+            }
             let [wv, wr, wd] = self.fast.quad_vertex[n]?;
             if topo.face_arity != 4 {
                 return None;
+            }
+            if n == 4 {
+                // The regular case, with fixed-size arrays (unrolled, branch-free checks).
+                let faces = &topo.vertex_faces[fa..fb];
+                let corners = &topo.vertex_face_corners[fa..fb];
+                let ring: [u32; 4] =
+                    std::array::from_fn(|i| topo.other_vertex(edges[i] as usize, v as u32));
+                let diag: [u32; 4] = std::array::from_fn(|i| {
+                    topo.face_vertices[4 * faces[i] as usize + ((corners[i] as usize + 2) & 3)]
+                });
+                let mut clash = false;
+                for i in 0..4 {
+                    for k in 0..4 {
+                        clash |= ring[k] == diag[i];
+                    }
+                    for k in 0..i {
+                        clash |= diag[k] == diag[i];
+                    }
+                }
+                if clash {
+                    return None;
+                }
+                acc.add_scaled(&src[v], wv);
+                for r in ring {
+                    acc.add_scaled(&src[r as usize], wr);
+                }
+                for d in diag {
+                    acc.add_scaled(&src[d as usize], wd);
+                }
+                return Some(acc);
             }
             // The diagonal corner of each quad, which must be new to the stencil.
             let mut ring = [0u32; CACHED_VALENCE];
@@ -729,21 +799,38 @@ impl Level<'_> {
                 topo.edge_faces[fa] as usize,
                 topo.edge_faces[fa + 1] as usize,
             );
+            // The corner opposite edge `e` in triangle `f`.
+            let opposite = |f: usize| {
+                let fe = &topo.face_edges[3 * f..3 * f + 3];
+                let i = if fe[0] as usize == e {
+                    2
+                } else if fe[1] as usize == e {
+                    0
+                } else {
+                    1
+                };
+                topo.face_vertices[3 * f + i]
+            };
             match (self.split, topo.face_arity) {
+                (Split::Polygons, 3) => {
+                    // The centroids merge onto the ends; the opposite corners are new unless
+                    // both triangles share them.
+                    let [wa, wb, w0, w1] = self.fast.tri_centroid_edge?;
+                    acc.add_scaled(&src[a as usize], wa);
+                    acc.add_scaled(&src[b as usize], wb);
+                    if w0 == 0.0 {
+                        return Some(acc);
+                    }
+                    let (o0, o1) = (opposite(f0), opposite(f1));
+                    if o0 == o1 {
+                        return None;
+                    }
+                    acc.add_scaled(&src[o0 as usize], w0);
+                    acc.add_scaled(&src[o1 as usize], w1);
+                    Some(acc)
+                }
                 (Split::Triangles, 3) => {
                     let [wa, wb, w0, w1] = self.fast.tri_edge;
-                    // The corner opposite edge `e` in triangle `f`.
-                    let opposite = |f: usize| {
-                        let fe = &topo.face_edges[3 * f..3 * f + 3];
-                        let i = if fe[0] as usize == e {
-                            2
-                        } else if fe[1] as usize == e {
-                            0
-                        } else {
-                            1
-                        };
-                        topo.face_vertices[3 * f + i]
-                    };
                     let (o0, o1) = (opposite(f0), opposite(f1));
                     if o0 == o1 && w0 != 0.0 && w1 != 0.0 {
                         return None;
