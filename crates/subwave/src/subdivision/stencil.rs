@@ -737,12 +737,12 @@ impl Level<'_> {
                     topo.face_vertices[4 * faces[i] as usize + ((corners[i] as usize + 2) & 3)]
                 });
                 let mut clash = false;
-                for i in 0..4 {
-                    for k in 0..4 {
-                        clash |= ring[k] == diag[i];
+                for (i, &d) in diag.iter().enumerate() {
+                    for &r in &ring {
+                        clash |= r == d;
                     }
-                    for k in 0..i {
-                        clash |= diag[k] == diag[i];
+                    for &e in &diag[..i] {
+                        clash |= e == d;
                     }
                 }
                 if clash {
