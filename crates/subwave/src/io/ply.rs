@@ -593,8 +593,13 @@ pub fn read(bytes: &[u8], path: &str) -> Result<Mesh> {
                     ),
                 )
             })?;
-        let wrap =
-            |what: String| move |f: Fail| Error::parse(path, f.loc, format!("{what}: {}", f.msg));
+        // `what` is formatted only when an error occurs (not once per value read).
+        fn wrap<'a>(
+            path: &'a str,
+            what: &'a dyn Fn() -> String,
+        ) -> impl FnOnce(Fail) -> Error + 'a {
+            move |f: Fail| Error::parse(path, f.loc, format!("{}: {}", what(), f.msg))
+        }
         if Some(ei) == vertex_el {
             mesh.positions.reserve_exact(count);
             if has_color {
@@ -612,11 +617,11 @@ pub fn read(bytes: &[u8], path: &str) -> Result<Mesh> {
                     let (Role::Coord(_) | Role::Color(_) | Role::Uv(_), Kind::Scalar(ty)) =
                         (role, p.kind)
                     else {
-                        data.skip(p.kind).map_err(wrap(ctx()))?;
+                        data.skip(p.kind).map_err(wrap(path, &ctx))?;
                         continue;
                     };
                     let loc = data.loc();
-                    let x = data.float(ty).map_err(wrap(ctx()))?;
+                    let x = data.float(ty).map_err(wrap(path, &ctx))?;
                     if !x.is_finite() {
                         return Err(Error::parse(
                             path,
@@ -650,11 +655,11 @@ pub fn read(bytes: &[u8], path: &str) -> Result<Mesh> {
                 let ctx = || format!("face {f} (of {count})");
                 for (p, &role) in el.props.iter().zip(&froles) {
                     let (Role::Indices, Kind::List { count: cty, item }) = (role, p.kind) else {
-                        data.skip(p.kind).map_err(wrap(ctx()))?;
+                        data.skip(p.kind).map_err(wrap(path, &ctx))?;
                         continue;
                     };
                     let loc = data.loc();
-                    let n = data.int(cty).map_err(wrap(ctx()))?;
+                    let n = data.int(cty).map_err(wrap(path, &ctx))?;
                     if n < 3 {
                         return Err(Error::parse(
                             path,
@@ -662,11 +667,11 @@ pub fn read(bytes: &[u8], path: &str) -> Result<Mesh> {
                             format!("face {f} has {n} vertices; a face needs at least 3"),
                         ));
                     }
-                    let n = data.check_list(n, item).map_err(wrap(ctx()))?;
+                    let n = data.check_list(n, item).map_err(wrap(path, &ctx))?;
                     let start = mesh.face_indices.len();
                     for _ in 0..n {
                         let loc = data.loc();
-                        let v = data.int(item).map_err(wrap(ctx()))?;
+                        let v = data.int(item).map_err(wrap(path, &ctx))?;
                         if v < 0 || v as u64 >= nv as u64 {
                             let range = if nv == 0 {
                                 "the file has no vertices".to_string()
@@ -698,7 +703,7 @@ pub fn read(bytes: &[u8], path: &str) -> Result<Mesh> {
             for i in 1..=count {
                 for p in &el.props {
                     data.skip(p.kind)
-                        .map_err(wrap(format!("element `{}` {i}", quote(el.name))))?;
+                        .map_err(wrap(path, &|| format!("element `{}` {i}", quote(el.name))))?;
                 }
             }
         }
