@@ -485,12 +485,17 @@ pub(crate) fn repeated_vertex(face: &[u32], scratch: &mut Vec<u32>) -> Option<u3
 pub(crate) fn check_writable(mesh: &Mesh) -> Result<()> {
     let nv = mesh.positions.len();
     let offs = &mesh.face_offsets;
+    // Chunks of faces checked in parallel (a refined mesh has millions of faces); the first
+    // offending face is then reported by the serial checks below.
+    const CHUNK: usize = 1 << 14;
     let consistent = if offs.is_empty() {
         mesh.face_indices.is_empty()
     } else {
         offs[0] == 0
             && offs[offs.len() - 1] as usize == mesh.face_indices.len()
-            && offs.windows(2).all(|w| w[0] <= w[1])
+            && offs.par_chunks(CHUNK).enumerate().all(|(c, w)| {
+                w.windows(2).all(|w| w[0] <= w[1]) && (c == 0 || offs[c * CHUNK - 1] <= w[0])
+            })
     };
     if !consistent {
         return Err(MeshError::BadOffsets.into());
@@ -501,19 +506,24 @@ pub(crate) fn check_writable(mesh: &Mesh) -> Result<()> {
             u32::MAX
         )));
     }
-    // The first offending face, found in parallel (a refined mesh has millions of faces),
-    // then reported by the serial checks below.
     let nf = offs.len().saturating_sub(1);
-    let bad = |f: usize| {
-        let fv = &mesh.face_indices[offs[f] as usize..offs[f + 1] as usize];
-        fv.len() < 3
-            || fv.iter().any(|&v| v as usize >= nv)
-            || repeated_vertex(fv, &mut Vec::new()).is_some()
+    let first_bad_in = |faces: std::ops::Range<usize>| {
+        let mut scratch = Vec::new();
+        faces.into_iter().find(|&f| {
+            let fv = &mesh.face_indices[offs[f] as usize..offs[f + 1] as usize];
+            match *fv {
+                [a, b, c] => a.max(b).max(c) as usize >= nv || a == b || b == c || c == a,
+                _ => {
+                    fv.len() < 3
+                        || fv.iter().any(|&v| v as usize >= nv)
+                        || repeated_vertex(fv, &mut scratch).is_some()
+                }
+            }
+        })
     };
-    let first_bad = (0..nf)
+    let first_bad = (0..nf.div_ceil(CHUNK))
         .into_par_iter()
-        .with_min_len(1 << 14)
-        .find_first(|&f| bad(f))
+        .find_map_first(|c| first_bad_in(c * CHUNK..((c + 1) * CHUNK).min(nf)))
         .unwrap_or(nf);
     if first_bad < nf {
         let fv = &mesh.face_indices[offs[first_bad] as usize..offs[first_bad + 1] as usize];
@@ -539,9 +549,9 @@ pub(crate) fn check_writable(mesh: &Mesh) -> Result<()> {
     }
     if let Some(v) = mesh
         .positions
-        .par_iter()
-        .with_min_len(1 << 14)
-        .position_first(|p| !p.is_finite())
+        .par_chunks(CHUNK)
+        .enumerate()
+        .find_map_first(|(c, ps)| Some(c * CHUNK + ps.iter().position(|p| !p.is_finite())?))
     {
         return Err(MeshError::NonFinite { vertex: v as u32 }.into());
     }
@@ -653,7 +663,68 @@ pub(crate) fn fits_u32(n: usize) -> bool {
 
 #[cfg(test)]
 mod tests {
-    use super::repeated_vertex;
+    use super::{check_writable, repeated_vertex};
+    use crate::{Error, Mesh, MeshError};
+    use glam::DVec3;
+
+    /// A strip of `n` triangles over `n + 2` vertices.
+    fn strip(n: u32) -> Mesh {
+        let positions = (0..n + 2)
+            .map(|i| DVec3::new(i as f64, (i % 2) as f64, 0.0))
+            .collect();
+        let tris: Vec<[u32; 3]> = (0..n).map(|i| [i, i + 1, i + 2]).collect();
+        Mesh::from_triangles(positions, &tris)
+    }
+
+    fn mesh_error(m: &Mesh) -> Option<MeshError> {
+        match check_writable(m) {
+            Ok(()) => None,
+            Err(Error::Mesh(e)) => Some(e),
+            Err(e) => panic!("unexpected error {e}"),
+        }
+    }
+
+    /// The parallel chunked scan reports the first offence, as the serial checks would, in any
+    /// chunk (the chunks hold 16,384 faces or vertices).
+    #[test]
+    fn check_writable_reports_the_first_offence() {
+        let n = 100_000u32;
+        assert!(mesh_error(&strip(n)).is_none());
+        for bad in [0u32, 16_383, 16_384, 70_001, n - 1] {
+            let mut m = strip(n);
+            m.face_indices[3 * bad as usize + 1] = m.face_indices[3 * bad as usize];
+            // A later face is out of range: the earlier repeated vertex is reported.
+            if bad + 5 < n {
+                m.face_indices[3 * (bad as usize + 5)] = n + 2;
+            }
+            match mesh_error(&m) {
+                Some(MeshError::RepeatedVertex { face, vertex }) => {
+                    assert_eq!((face, vertex), (bad, bad))
+                }
+                e => panic!("face {bad}: {e:?}"),
+            }
+            let mut m = strip(n);
+            m.face_indices[3 * bad as usize + 2] = n + 2;
+            assert!(
+                matches!(mesh_error(&m), Some(MeshError::IndexOutOfRange { face, .. }) if face == bad),
+                "face {bad}"
+            );
+            let mut m = strip(n);
+            m.positions[bad as usize + 1].y = f64::NAN;
+            m.positions[n as usize].z = f64::INFINITY;
+            assert!(
+                matches!(mesh_error(&m), Some(MeshError::NonFinite { vertex }) if vertex == bad + 1),
+                "vertex {}",
+                bad + 1
+            );
+        }
+        let mut m = strip(n);
+        m.face_offsets[40_000] = m.face_offsets[40_001] + 1;
+        assert!(matches!(mesh_error(&m), Some(MeshError::BadOffsets)));
+        let mut m = strip(n);
+        m.face_offsets[16_384] = m.face_offsets[16_383] - 1;
+        assert!(matches!(mesh_error(&m), Some(MeshError::BadOffsets)));
+    }
 
     /// The triangle and quad shortcuts answer as the general scan does: the first vertex, in
     /// face order, that repeats an earlier one (every face over a 4-letter alphabet).
