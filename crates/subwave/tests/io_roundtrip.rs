@@ -611,6 +611,42 @@ fn ply_round_trip() {
     assert_eq!(back, m);
 }
 
+/// More vertices and faces than one serialization chunk (16,384), triangles and quads mixed,
+/// with colours: the parallel writer keeps the order.
+#[test]
+fn ply_round_trip_across_chunks() {
+    let n = 40_000u32;
+    let positions = (0..2 * n + 2)
+        .map(|i| {
+            DVec3::new(
+                f64::from(i) * 0.25,
+                f64::from(i % 2),
+                f64::from(i % 7) / 3.0,
+            )
+        })
+        .collect();
+    let faces: Vec<Vec<u32>> = (0..n)
+        .map(|i| {
+            let a = 2 * i;
+            if i % 5 == 0 {
+                vec![a, a + 1, a + 3, a + 2]
+            } else {
+                vec![a, a + 1, a + 2]
+            }
+        })
+        .collect();
+    let mut m = Mesh::from_faces(positions, faces);
+    m.colors = Some(
+        (0..m.num_vertices())
+            .map(|i| [(i % 256) as f32 / 255.0, 1.0, (i * 7 % 256) as f32 / 255.0])
+            .collect(),
+    );
+    let bytes = write(&m, Format::Ply);
+    let back = read(&bytes, Format::Ply);
+    assert_eq!(bits(&back), bits(&m));
+    assert_eq!(back, m);
+}
+
 #[test]
 fn ply_wide_faces_use_uint_counts() {
     let n = 300u32;

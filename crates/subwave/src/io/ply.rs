@@ -17,6 +17,7 @@
 use std::io::{BufWriter, Write};
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use super::{
     at_file, at_line, check_writable, fits_u32, parse_f64, parse_int, quote, repeated_vertex,
@@ -735,6 +736,35 @@ pub fn write(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
     w.flush().map_err(write_err)
 }
 
+/// Writes the bytes that `serialize(range, out)` appends for the elements `0..n`, serialized
+/// in parallel chunks of [`WRITE_CHUNK`] elements, [`WRITE_BATCH`] chunks at a time.
+fn write_batched(
+    w: &mut impl Write,
+    n: usize,
+    serialize: impl Fn(std::ops::Range<usize>, &mut Vec<u8>) + Sync,
+) -> std::io::Result<()> {
+    let chunks = n.div_ceil(WRITE_CHUNK);
+    for batch in (0..chunks).step_by(WRITE_BATCH) {
+        let bytes: Vec<Vec<u8>> = (batch..(batch + WRITE_BATCH).min(chunks))
+            .into_par_iter()
+            .map(|c| {
+                let mut out = Vec::new();
+                serialize(c * WRITE_CHUNK..((c + 1) * WRITE_CHUNK).min(n), &mut out);
+                out
+            })
+            .collect();
+        for b in &bytes {
+            w.write_all(b)?;
+        }
+    }
+    Ok(())
+}
+
+/// Elements per serialized chunk of [`write_batched`].
+const WRITE_CHUNK: usize = 1 << 14;
+/// Chunks serialized between two writes of [`write_batched`] (about 1M elements).
+const WRITE_BATCH: usize = 64;
+
 fn write_inner(mesh: &Mesh, w: &mut impl Write) -> std::io::Result<()> {
     let wide = mesh.face_offsets.windows(2).any(|o| o[1] - o[0] > 255);
     writeln!(
@@ -755,29 +785,51 @@ fn write_inner(mesh: &Mesh, w: &mut impl Write) -> std::io::Result<()> {
         w,
         "property list {count_type} uint vertex_indices\nend_header"
     )?;
-    for (v, p) in mesh.positions.iter().enumerate() {
-        for x in p.to_array() {
-            w.write_all(&x.to_le_bytes())?;
-        }
-        if let Some(c) = &mesh.colors {
-            let q = c[v].map(|x| (x.clamp(0.0, 1.0) * 255.0).round() as u8);
-            w.write_all(&q)?;
-        }
-        if let Some(uvs) = &mesh.uvs {
-            for x in uvs[v] {
-                w.write_all(&x.to_le_bytes())?;
+    // The body is serialized in parallel, a batch of chunks at a time (bounded extra memory).
+    let nv = mesh.num_vertices();
+    let stride = 24 + 3 * mesh.colors.is_some() as usize + 16 * mesh.uvs.is_some() as usize;
+    write_batched(w, nv, |range, out| {
+        out.reserve_exact(range.len() * stride);
+        for v in range {
+            let p = mesh.positions[v];
+            let mut xyz = [0u8; 24];
+            xyz[..8].copy_from_slice(&p.x.to_le_bytes());
+            xyz[8..16].copy_from_slice(&p.y.to_le_bytes());
+            xyz[16..].copy_from_slice(&p.z.to_le_bytes());
+            out.extend_from_slice(&xyz);
+            if let Some(c) = &mesh.colors {
+                out.extend(c[v].map(|x| (x.clamp(0.0, 1.0) * 255.0).round() as u8));
+            }
+            if let Some(uvs) = &mesh.uvs {
+                for x in uvs[v] {
+                    out.extend_from_slice(&x.to_le_bytes());
+                }
             }
         }
-    }
-    for fv in mesh.faces() {
-        if wide {
-            w.write_all(&(fv.len() as u32).to_le_bytes())?;
-        } else {
-            w.write_all(&[fv.len() as u8])?;
+    })?;
+    let offs = &mesh.face_offsets;
+    write_batched(w, mesh.num_faces(), |range, out| {
+        let corners = (offs[range.end] - offs[range.start]) as usize;
+        out.reserve_exact(range.len() * if wide { 4 } else { 1 } + 4 * corners);
+        for f in range {
+            let fv = &mesh.face_indices[offs[f] as usize..offs[f + 1] as usize];
+            if let ([a, b, c], false) = (fv, wide) {
+                let mut t = [3u8; 13];
+                t[1..5].copy_from_slice(&a.to_le_bytes());
+                t[5..9].copy_from_slice(&b.to_le_bytes());
+                t[9..].copy_from_slice(&c.to_le_bytes());
+                out.extend_from_slice(&t);
+                continue;
+            }
+            if wide {
+                out.extend_from_slice(&(fv.len() as u32).to_le_bytes());
+            } else {
+                out.push(fv.len() as u8);
+            }
+            for &v in fv {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
         }
-        for &v in fv {
-            w.write_all(&v.to_le_bytes())?;
-        }
-    }
+    })?;
     Ok(())
 }
