@@ -53,7 +53,7 @@ const STEPS: &[Step] = &[
         run: encode_stream,
     },
     Step {
-        name: "decode",
+        name: "decode + measure",
         run: decode_progressively,
     },
     Step {
@@ -379,7 +379,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         timings.push((step.name, took));
         writeln!(
             out,
-            "[{}/{}] {:<12} {} ({})",
+            "[{}/{}] {:<16} {} ({})",
             i + 1,
             STEPS.len(),
             step.name,
