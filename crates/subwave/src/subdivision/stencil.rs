@@ -799,17 +799,15 @@ impl Level<'_> {
                 topo.edge_faces[fa] as usize,
                 topo.edge_faces[fa + 1] as usize,
             );
-            // The corner opposite edge `e` in triangle `f`.
+            // The corner opposite edge `e = ab` in triangle `f`: its three distinct corners
+            // sum to `a + b + opposite` (wrapping arithmetic is exact on `u32`).
             let opposite = |f: usize| {
-                let fe = &topo.face_edges[3 * f..3 * f + 3];
-                let i = if fe[0] as usize == e {
-                    2
-                } else if fe[1] as usize == e {
-                    0
-                } else {
-                    1
-                };
-                topo.face_vertices[3 * f + i]
+                let fv = &topo.face_vertices[3 * f..3 * f + 3];
+                fv[0]
+                    .wrapping_add(fv[1])
+                    .wrapping_add(fv[2])
+                    .wrapping_sub(a)
+                    .wrapping_sub(b)
             };
             match (self.split, topo.face_arity) {
                 (Split::Polygons, 3) => {
