@@ -27,6 +27,7 @@ pub mod generate;
 pub mod hierarchy;
 pub mod io;
 pub mod mesh;
+mod par;
 pub mod remesh;
 pub mod subdivision;
 pub mod topology;

@@ -85,12 +85,7 @@ const FACE_CHUNK: usize = 4096;
 
 /// Offsets `0, arity, 2 arity, ..., n arity` of `n` faces of one arity.
 fn uniform_offsets(n: usize, arity: u32) -> Vec<u32> {
-    let mut offsets = Vec::with_capacity(n + 1);
-    (0..n as u32 + 1)
-        .into_par_iter()
-        .map(|i| arity * i)
-        .collect_into_vec(&mut offsets);
-    offsets
+    crate::par::par_vec(n + 1, 1 << 16, || (), |_, i| arity * i as u32)
 }
 
 /// Child faces only (no edges): enough for the last level of a refinement, whose topology

@@ -105,9 +105,8 @@ impl StencilTable {
     /// # Panics
     /// If `src.len() != self.num_sources`.
     pub fn apply<T: Interpolate>(&self, src: &[T]) -> Vec<T> {
-        let mut dst = vec![T::zero(); self.len()];
-        self.apply_into(src, &mut dst);
-        dst
+        assert_eq!(src.len(), self.num_sources as usize, "stencil source size");
+        crate::par::par_vec(self.len(), CHUNK, || (), |_, j| self.eval(j, src))
     }
 
     /// Child `j`'s value: its stencil applied to `src`, summed in stencil order.
@@ -1023,18 +1022,12 @@ pub fn level_stencils(topo: &Topology, ctx: &LevelContext) -> StencilTable {
 pub fn level_apply<T: Interpolate>(topo: &Topology, ctx: &LevelContext, src: &[T]) -> Vec<T> {
     assert_eq!(src.len(), topo.num_vertices as usize, "stencil source size");
     let level = Level::new(topo, ctx);
-    let mut out = Vec::with_capacity(level.n_child);
-    (0..level.n_child)
-        .into_par_iter()
-        .with_min_len(CHUNK)
-        .map_init(Scratch::default, |s, j| {
-            level.fast_value(j, src).unwrap_or_else(|| {
-                level.stencil(j, s);
-                s.b.eval(src)
-            })
+    crate::par::par_vec(level.n_child, CHUNK, Scratch::default, |s, j| {
+        level.fast_value(j, src).unwrap_or_else(|| {
+            level.stencil(j, s);
+            s.b.eval(src)
         })
-        .collect_into_vec(&mut out);
-    out
+    })
 }
 
 #[cfg(test)]
