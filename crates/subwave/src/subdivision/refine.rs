@@ -96,19 +96,37 @@ pub fn child_faces(parent: &Topology, split: Split) -> (Vec<u32>, Vec<u32>) {
     let nf = parent.num_faces();
     match split {
         Split::Triangles => {
-            let mut fv = vec![0u32; 12 * nf];
-            fv.par_chunks_mut(12 * FACE_CHUNK)
-                .enumerate()
-                .for_each(|(c, out)| {
-                    for (k, o) in out.chunks_exact_mut(12).enumerate() {
-                        let f = c * FACE_CHUNK + k;
-                        let v = parent.face_vertices(f);
-                        let e = parent.face_edges(f);
-                        let (v3, v4, v5) = (nv + e[0], nv + e[1], nv + e[2]);
-                        o.copy_from_slice(&[v[0], v3, v5, v[1], v4, v3, v[2], v5, v4, v3, v4, v5]);
-                    }
-                });
-            (uniform_offsets(4 * nf, 3), fv)
+            let fv = crate::par::par_vec(
+                nf,
+                FACE_CHUNK,
+                || (),
+                |_, f| {
+                    let v = parent.face_vertices(f);
+                    let e = parent.face_edges(f);
+                    let (v3, v4, v5) = (nv + e[0], nv + e[1], nv + e[2]);
+                    [v[0], v3, v5, v[1], v4, v3, v[2], v5, v4, v3, v4, v5]
+                },
+            );
+            (uniform_offsets(4 * nf, 3), fv.into_flattened())
+        }
+        Split::Polygons if parent.face_arity == 4 => {
+            // A quad mesh (every level after the first of Catmull-Clark): fixed-size records.
+            let fv = crate::par::par_vec(
+                nf,
+                FACE_CHUNK,
+                || (),
+                |_, f| {
+                    let v = parent.face_vertices(f);
+                    let e = parent.face_edges(f);
+                    let c = nv + ne + f as u32;
+                    let m = [nv + e[0], nv + e[1], nv + e[2], nv + e[3]];
+                    [
+                        v[0], m[0], c, m[3], v[1], m[1], c, m[0], v[2], m[2], c, m[1], v[3], m[3],
+                        c, m[2],
+                    ]
+                },
+            );
+            (uniform_offsets(4 * nf, 4), fv.into_flattened())
         }
         Split::Polygons => {
             let nc = parent.face_vertices.len();
