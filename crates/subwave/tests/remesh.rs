@@ -395,7 +395,17 @@ fn fold_repair_removes_injected_folds() {
         pushed += 1;
     }
     let before = pos.clone();
-    let fr = repair_folds(&mut pos, &mut hints, &topo, &fixed, &[], &proj, 12, None);
+    let fr = repair_folds(
+        &mut pos,
+        &mut hints,
+        &topo,
+        &fixed,
+        &[],
+        &proj,
+        12,
+        None,
+        f64::INFINITY,
+    );
     assert!(
         fr.flipped_before >= pushed,
         "{pushed} pushes gave only {fr:?}"
@@ -451,7 +461,17 @@ fn fold_repair_slides_rim_vertices_along_the_boundary() {
     let run = |slides: &[bool]| {
         let mut pos = rem.positions.clone();
         let mut hints: Vec<u32> = pos.iter().map(|&p| proj.closest(p).1).collect();
-        let fr = repair_folds(&mut pos, &mut hints, &topo, &fixed, slides, &proj, 12, None);
+        let fr = repair_folds(
+            &mut pos,
+            &mut hints,
+            &topo,
+            &fixed,
+            slides,
+            &proj,
+            12,
+            None,
+            f64::INFINITY,
+        );
         (fr, pos)
     };
     let (pinned, _) = run(&[]);

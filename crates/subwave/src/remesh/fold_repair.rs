@@ -16,6 +16,12 @@
 //! sampling (and the distortion) changes only locally. Only positions change: the
 //! subdivision connectivity is untouched; pinned vertices (on boundary and feature chains)
 //! stay on their curves.
+//!
+//! Faces whose centroid lies farther than a tolerance off the input are repaired too (with
+//! the same disc re-embeddings): where the parameterization's images overlap, a patch of
+//! faces can be stretched across the input, each face neither flipped nor thin but
+//! bridging a region of the surface it does not follow (beetle at 5 levels: 86% of the
+//! squared distance in two base triangles, 63.0 dB instead of 77.0 dB).
 
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
@@ -45,28 +51,39 @@ pub struct FoldRepair {
 }
 
 /// Whether face `f` is bad: its normal makes a non-acute angle with the input normal at the
-/// closest input point of its centroid, or it has an angle below `min_degrees`.
-fn bad_face(fv: &[u32], pos: &[DVec3], hints: &[u32], proj: &Projector, min_degrees: f64) -> bool {
-    flip_sign(fv, pos, hints, proj) <= 0.0 || min_angle(fv, pos) < min_degrees
+/// closest input point of its centroid, it has an angle below `min_degrees`, or its
+/// centroid is farther than `off` from the input.
+fn bad_face(
+    fv: &[u32],
+    pos: &[DVec3],
+    hints: &[u32],
+    proj: &Projector,
+    min_degrees: f64,
+    off: f64,
+) -> bool {
+    let (sign, dist) = flip_sign(fv, pos, hints, proj);
+    sign <= 0.0 || dist > off || min_angle(fv, pos) < min_degrees
 }
 
 /// The dot product of face `fv`'s normal with the input normal at the closest input point
-/// of its centroid.
-fn flip_sign(fv: &[u32], pos: &[DVec3], hints: &[u32], proj: &Projector) -> f64 {
+/// of its centroid, and the centroid's distance to that point.
+fn flip_sign(fv: &[u32], pos: &[DVec3], hints: &[u32], proj: &Projector) -> (f64, f64) {
     let n = face_normal(fv, pos);
     let c = fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64;
-    let (_, tri) = proj.closest_near(c, &face_hints(fv, hints));
-    n.dot(proj.normals[tri as usize])
+    let (q, tri) = proj.closest_near(c, &face_hints(fv, hints));
+    (n.dot(proj.normals[tri as usize]), q.distance(c))
 }
 
-/// A face's flip sign (as [`flip_sign`]), smallest angle (degrees), and whether it is
-/// degenerate (as [`super::quality::Quality::degenerate`]).
-type FaceState = (f64, f64, bool);
+/// A face's flip sign (as [`flip_sign`]), smallest angle (degrees), whether it is
+/// degenerate (as [`super::quality::Quality::degenerate`]), and its centroid's distance
+/// to the input.
+type FaceState = (f64, f64, bool, f64);
 
 fn face_state(fv: &[u32], pos: &[DVec3], hints: &[u32], proj: &Projector) -> FaceState {
     let angle = min_angle(fv, pos);
     let degenerate = angle < DEGENERATE_DEGREES || face_normal(fv, pos).length_squared() == 0.0;
-    (flip_sign(fv, pos, hints, proj), angle, degenerate)
+    let (sign, dist) = flip_sign(fv, pos, hints, proj);
+    (sign, angle, degenerate, dist)
 }
 
 /// Re-measures the faces around the vertices that moved since `last` was taken, and takes
@@ -107,12 +124,12 @@ fn measure(
     }
 }
 
-/// The bad faces of `state` (as [`bad_face`] with [`BAD_ANGLE`]).
-fn bad_of(state: &[FaceState]) -> Vec<u32> {
+/// The bad faces of `state` (as [`bad_face`] with [`BAD_ANGLE`] and `off`).
+fn bad_of(state: &[FaceState], off: f64) -> Vec<u32> {
     (0..state.len() as u32)
         .filter(|&f| {
             let s = state[f as usize];
-            s.0 <= 0.0 || s.1 < BAD_ANGLE
+            s.0 <= 0.0 || s.1 < BAD_ANGLE || s.3 > off
         })
         .collect()
 }
@@ -133,7 +150,8 @@ fn counts(state: &[FaceState]) -> (usize, usize) {
 /// which a disc's re-embedding may slide along the input's boundary between boundary
 /// vertices that stay. `suspects`: the only faces that can be flipped or have an angle
 /// below 2° (as [`super::resample::untangle_bad`] returns them), or `None` to measure
-/// every face.
+/// every face. Faces whose centroid is farther than `off_surface` from the input are bad
+/// as well (every face is measured for that; `f64::INFINITY` for none).
 ///
 /// Preconditions: `pos`, `hints` and `fixed` have `topo.num_vertices` entries, `slides`
 /// as many or none; the vertices lie on the input behind `proj`.
@@ -147,16 +165,28 @@ pub fn repair_folds(
     proj: &Projector,
     rounds: u32,
     suspects: Option<&[u32]>,
+    off_surface: f64,
 ) -> FoldRepair {
     let t0 = std::time::Instant::now();
+    let off = off_surface;
     let mut state: Vec<FaceState> = match suspects {
         None => (0..topo.num_faces())
             .into_par_iter()
             .map(|f| face_state(topo.face_vertices(f), pos, hints, proj))
             .collect(),
         Some(faces) => {
-            let mut state = vec![(1.0, 60.0, false); topo.num_faces()];
-            measure(&mut state, faces, topo, pos, hints, proj);
+            let mut state = vec![(1.0, 60.0, false, 0.0); topo.num_faces()];
+            let mut faces = faces.to_vec();
+            if off.is_finite() {
+                // Faces off the input are not among the suspects: every face's centroid.
+                faces.par_extend((0..topo.num_faces() as u32).into_par_iter().filter(|&f| {
+                    let fv = topo.face_vertices(f as usize);
+                    flip_sign(fv, pos, hints, proj).1 > off
+                }));
+                faces.sort_unstable();
+                faces.dedup();
+            }
+            measure(&mut state, &faces, topo, pos, hints, proj);
             state
         }
     };
@@ -168,7 +198,7 @@ pub fn repair_folds(
         ..FoldRepair::default()
     };
     let mut origin: Vec<Option<(DVec3, f64)>> = vec![None; pos.len()];
-    let bad = bad_of(&state);
+    let bad = bad_of(&state, off);
     tracing::debug!(
         ms = t0.elapsed().as_secs_f64() * 1e3,
         "fold repair: measured"
@@ -183,6 +213,7 @@ pub fn repair_folds(
         bad,
         &mut origin,
         &mut out.moves,
+        off,
     );
     // Folds no single vertex can open: re-embed a growing disc around each connected group
     // of bad faces, then polish the discs' new faces vertex by vertex.
@@ -198,7 +229,17 @@ pub fn repair_folds(
             bad = bad.len(),
             "fold repair: vertex rounds"
         );
-        let moved = reembed(pos, hints, topo, fixed, slides, proj, &bad, &mut failed);
+        let moved = reembed(
+            pos,
+            hints,
+            topo,
+            fixed,
+            slides,
+            proj,
+            &bad,
+            &mut failed,
+            off,
+        );
         tracing::debug!(
             ms = t0.elapsed().as_secs_f64() * 1e3,
             moved,
@@ -209,7 +250,7 @@ pub fn repair_folds(
         }
         out.moves += moved;
         refresh(&mut state, &mut last, topo, pos, hints, proj);
-        let again = bad_of(&state);
+        let again = bad_of(&state, off);
         let again = vertex_rounds(
             pos,
             hints,
@@ -220,6 +261,7 @@ pub fn repair_folds(
             again,
             &mut origin,
             &mut out.moves,
+            off,
         );
         let progress = again.len() < bad.len();
         bad = again;
@@ -239,7 +281,7 @@ pub fn repair_folds(
 /// vertices of the `bad` faces (the region growing by one ring per round, up to three; at
 /// most `rounds` rounds, fewer once a round at full radius no longer lowers their number). `origin[v]` is
 /// where vertex `v` was, and its ring's mean edge length, when the repair first met it.
-/// Returns the bad faces left.
+/// Returns the bad faces left (faces off the input by more than `off` count as bad).
 #[allow(clippy::too_many_arguments)]
 fn vertex_rounds(
     pos: &mut [DVec3],
@@ -251,6 +293,7 @@ fn vertex_rounds(
     mut bad: Vec<u32>,
     origin: &mut [Option<(DVec3, f64)>],
     moves: &mut usize,
+    off: f64,
 ) -> Vec<u32> {
     // Where each vertex was, and its ring's mean edge length, when the repair first met it.
     let mean_edge = |v: usize, pos: &[DVec3]| {
@@ -322,7 +365,16 @@ fn vertex_rounds(
         let hint: &[u32] = hints;
         bad = faces
             .into_par_iter()
-            .filter(|&f| bad_face(topo.face_vertices(f as usize), cur, hint, proj, BAD_ANGLE))
+            .filter(|&f| {
+                bad_face(
+                    topo.face_vertices(f as usize),
+                    cur,
+                    hint,
+                    proj,
+                    BAD_ANGLE,
+                    off,
+                )
+            })
             .collect();
         tracing::debug!(round, bad = bad.len(), region = verts.len(), "fold repair");
         // At full radius, stop once a round no longer lowers the count.
@@ -381,7 +433,8 @@ fn saved_hint(free: &[u32], saved: &[(DVec3, u32)], v: u32) -> u32 {
 /// A re-embedding is kept only if it lowers
 /// the number of bad faces of the disc without pulling faces off the input. Returns the
 /// number of vertices moved. Groups in `failed` whose corners are where they were when they
-/// failed are skipped; groups that fail are added with their corners' positions.
+/// failed are skipped; groups that fail are added with their corners' positions. Faces off
+/// the input by more than `off` count as bad.
 #[allow(clippy::too_many_arguments)]
 fn reembed(
     pos: &mut [DVec3],
@@ -392,6 +445,7 @@ fn reembed(
     proj: &Projector,
     bad: &[u32],
     failed: &mut std::collections::HashMap<Vec<u32>, Vec<DVec3>>,
+    off: f64,
 ) -> usize {
     let nv = pos.len();
     // Groups of bad faces sharing vertices (union-find over the faces' vertices).
@@ -479,7 +533,7 @@ fn reembed(
             let mut len = 0.0;
             for &f in disc_faces {
                 let fv = topo.face_vertices(f as usize);
-                if bad_face(fv, pos, hints, proj, BAD_ANGLE) {
+                if bad_face(fv, pos, hints, proj, BAD_ANGLE, off) {
                     nbad += 1;
                 }
                 let c = fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64;
