@@ -18,15 +18,7 @@
 //! changes no result, only where the memory comes from; elsewhere than Linux it is mimalloc
 //! alone. Measured on the bunny's third Loop level (median of 15 runs, three alternations):
 //! glibc with the advice 206–226 ms, mimalloc alone 200–208 ms, mimalloc with the advice
-//! 157–182 ms.
-//!
-//! mimalloc returns freed memory to the kernel after a delay (its `purge_delay`, 1 s by
-//! default); a later allocation then faults and zeroes every page again. [`HugePages`] sets
-//! the delay to [`PURGE_DELAY_MS`] (5 s) on its first allocation, so that back-to-back
-//! refinements reuse the memory of the previous ones while an idle process still gives its
-//! memory back. Measured on eight bunny Loop level 3 refinements in one process: 7,636 page
-//! faults with the default delay, 338 with 5 s (the same as never purging). Binaries opt in
-//! (a library cannot choose the global allocator):
+//! 157–182 ms. Binaries opt in (a library cannot choose the global allocator):
 //!
 //! ```
 //! #[global_allocator]
@@ -38,40 +30,11 @@
 //! `GLIBC_TUNABLES=glibc.malloc.hugetlb=1` gives it the huge-page advice too).
 
 use std::alloc::{GlobalAlloc, Layout};
-use std::sync::Once;
 
 use mimalloc::MiMalloc as Inner;
 
 /// Allocations of at least this many bytes (4 MiB) are advised to use huge pages.
 pub const HUGE_THRESHOLD: usize = 4 << 20;
-
-/// How long (milliseconds) freed memory stays with the process before mimalloc returns it to
-/// the kernel (see the module documentation).
-pub const PURGE_DELAY_MS: i64 = 5000;
-
-/// mimalloc's option index of `mi_option_purge_delay` (`mimalloc.h`, v3: the 16th entry of
-/// `mi_option_e`).
-const MI_OPTION_PURGE_DELAY: std::ffi::c_int = 15;
-
-extern "C" {
-    /// `mi_option_get` of the mimalloc library that the `mimalloc` crate links.
-    #[cfg(test)]
-    fn mi_option_get(option: std::ffi::c_int) -> std::ffi::c_long;
-    /// `mi_option_set` of the mimalloc library that the `mimalloc` crate links.
-    fn mi_option_set(option: std::ffi::c_int, value: std::ffi::c_long);
-}
-
-static CONFIGURE: Once = Once::new();
-
-/// Sets mimalloc's purge delay once, before the first allocation through [`HugePages`].
-#[inline]
-fn configure() {
-    CONFIGURE.call_once(|| {
-        // SAFETY: `mi_option_set` stores an integer option; `Once` runs it on one thread,
-        // before any allocation of this allocator (it allocates nothing itself).
-        unsafe { mi_option_set(MI_OPTION_PURGE_DELAY, PURGE_DELAY_MS as std::ffi::c_long) }
-    });
-}
 
 /// mimalloc, with allocations of [`HUGE_THRESHOLD`] bytes or more advised
 /// `MADV_HUGEPAGE` (see the module documentation).
@@ -105,7 +68,6 @@ fn advise(ptr: *mut u8, size: usize) {
 unsafe impl GlobalAlloc for HugePages {
     #[inline]
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        configure();
         let p = Inner.alloc(layout);
         advise(p, layout.size());
         p
@@ -113,7 +75,6 @@ unsafe impl GlobalAlloc for HugePages {
 
     #[inline]
     unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        configure();
         let p = Inner.alloc_zeroed(layout);
         advise(p, layout.size());
         p
@@ -126,7 +87,6 @@ unsafe impl GlobalAlloc for HugePages {
 
     #[inline]
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        configure();
         let p = Inner.realloc(ptr, layout, new_size);
         if new_size > layout.size() {
             advise(p, new_size);
@@ -138,21 +98,6 @@ unsafe impl GlobalAlloc for HugePages {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The option index is mimalloc's purge delay: it reads back as set (its default is
-    /// 1000 ms, so a wrong index reads something else).
-    #[test]
-    fn purge_delay_is_set() {
-        let layout = Layout::from_size_align(64, 8).unwrap();
-        unsafe {
-            let p = HugePages.alloc(layout);
-            HugePages.dealloc(p, layout);
-            assert_eq!(
-                mi_option_get(MI_OPTION_PURGE_DELAY),
-                PURGE_DELAY_MS as std::ffi::c_long
-            );
-        }
-    }
 
     #[test]
     fn large_and_small_allocations_work() {
