@@ -485,8 +485,8 @@ pub(crate) fn repeated_vertex(face: &[u32], scratch: &mut Vec<u32>) -> Option<u3
 pub(crate) fn check_writable(mesh: &Mesh) -> Result<()> {
     let nv = mesh.positions.len();
     let offs = &mesh.face_offsets;
-    // Chunks of faces checked in parallel (a refined mesh has millions of faces); the first
-    // offending face is then reported by the serial checks below.
+    // Faces and vertices checked in parallel chunks (a refined mesh has millions of faces),
+    // reporting the first offence.
     const CHUNK: usize = 1 << 14;
     let consistent = if offs.is_empty() {
         mesh.face_indices.is_empty()
@@ -506,46 +506,36 @@ pub(crate) fn check_writable(mesh: &Mesh) -> Result<()> {
             u32::MAX
         )));
     }
-    let nf = offs.len().saturating_sub(1);
-    let first_bad_in = |faces: std::ops::Range<usize>| {
-        let mut scratch = Vec::new();
-        faces.into_iter().find(|&f| {
-            let fv = &mesh.face_indices[offs[f] as usize..offs[f + 1] as usize];
-            match *fv {
-                [a, b, c] => a.max(b).max(c) as usize >= nv || a == b || b == c || c == a,
-                _ => {
-                    fv.len() < 3
-                        || fv.iter().any(|&v| v as usize >= nv)
-                        || repeated_vertex(fv, &mut scratch).is_some()
-                }
+    // The first offence of face `f`, if any (a shortcut for valid triangles).
+    let face_error = |f: usize, scratch: &mut Vec<u32>| -> Option<MeshError> {
+        let fv = &mesh.face_indices[offs[f] as usize..offs[f + 1] as usize];
+        let face = f as u32;
+        if let [a, b, c] = *fv {
+            if (a.max(b).max(c) as usize) < nv && a != b && b != c && c != a {
+                return None;
             }
-        })
-    };
-    let first_bad = (0..nf.div_ceil(CHUNK))
-        .into_par_iter()
-        .find_map_first(|c| first_bad_in(c * CHUNK..((c + 1) * CHUNK).min(nf)))
-        .unwrap_or(nf);
-    if first_bad < nf {
-        let fv = &mesh.face_indices[offs[first_bad] as usize..offs[first_bad + 1] as usize];
-        let face = first_bad as u32;
+        }
         if fv.len() < 3 {
-            return Err(MeshError::FaceTooSmall {
+            return Some(MeshError::FaceTooSmall {
                 face,
                 arity: fv.len(),
-            }
-            .into());
+            });
         }
         if let Some(&index) = fv.iter().find(|&&v| v as usize >= nv) {
-            return Err(MeshError::IndexOutOfRange {
+            return Some(MeshError::IndexOutOfRange {
                 face,
                 index,
                 vertices: nv,
-            }
-            .into());
+            });
         }
-        if let Some(vertex) = repeated_vertex(fv, &mut Vec::new()) {
-            return Err(MeshError::RepeatedVertex { face, vertex }.into());
-        }
+        repeated_vertex(fv, scratch).map(|vertex| MeshError::RepeatedVertex { face, vertex })
+    };
+    let nf = offs.len().saturating_sub(1);
+    if let Some(e) = (0..nf.div_ceil(CHUNK)).into_par_iter().find_map_first(|c| {
+        let mut scratch = Vec::new();
+        (c * CHUNK..((c + 1) * CHUNK).min(nf)).find_map(|f| face_error(f, &mut scratch))
+    }) {
+        return Err(e.into());
     }
     if let Some(v) = mesh
         .positions
