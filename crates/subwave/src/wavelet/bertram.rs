@@ -51,7 +51,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
-use super::floor_div_const;
+use super::floor_div_const_small;
 
 use crate::mesh::Mesh;
 use crate::subdivision::stencil::Interpolate;
@@ -325,13 +325,28 @@ impl BSplineWavelet {
         coarse: &Topology,
         data: &mut [[I; 3]],
     ) -> Result<()> {
+        self.analyze_level_int_with(coarse, data, None).map(|_| ())
+    }
+
+    /// [`BSplineWavelet::analyze_level_int`] with `all_small` = `Some(true)` if every value of
+    /// `data` is known to lie within [`FAST_BOUND`] (no scan); returns whether the coarse
+    /// part left in `data[..V]` does.
+    fn analyze_level_int_with<I: IntCoord>(
+        &self,
+        coarse: &Topology,
+        data: &mut [[I; 3]],
+        all_small: Option<bool>,
+    ) -> Result<bool> {
         check_len(coarse, data.len())?;
         let ctx = Ctx::new(coarse, self.boundary);
-        let mut small = Small::scan(coarse, data);
+        let mut small = match all_small {
+            Some(true) => Small::ALL,
+            _ => Small::scan(coarse, data, None),
+        };
         for l in self.degree.integer_lifts() {
             ctx.int_lift_tracked(*l, data, false, &mut small)?;
         }
-        Ok(())
+        Ok(small.v)
     }
 
     /// One integer synthesis step (eqs. 4.10, 4.11), the exact inverse of
@@ -344,13 +359,26 @@ impl BSplineWavelet {
         coarse: &Topology,
         data: &mut [[I; 3]],
     ) -> Result<()> {
+        self.synthesize_level_int_with(coarse, data, None)
+            .map(|_| ())
+    }
+
+    /// [`BSplineWavelet::synthesize_level_int`] with `coarse_small` = `Some(true)` if the
+    /// coarse part `data[..V]` is known to lie within [`FAST_BOUND`] (only the details are
+    /// scanned); returns whether all of `data` does afterwards.
+    fn synthesize_level_int_with<I: IntCoord>(
+        &self,
+        coarse: &Topology,
+        data: &mut [[I; 3]],
+        coarse_small: Option<bool>,
+    ) -> Result<bool> {
         check_len(coarse, data.len())?;
         let ctx = Ctx::new(coarse, self.boundary);
-        let mut small = Small::scan(coarse, data);
+        let mut small = Small::scan(coarse, data, coarse_small.filter(|&b| b));
         for l in self.degree.integer_lifts().iter().rev() {
             ctx.int_lift_tracked(*l, data, true, &mut small)?;
         }
-        Ok(())
+        Ok(small.v && small.e && small.f)
     }
 
     /// The full integer analysis of a hierarchy, in place (layout as
@@ -361,8 +389,10 @@ impl BSplineWavelet {
     pub fn analyze_int<I: IntCoord>(&self, levels: &[Topology], data: &mut [[I; 3]]) -> Result<()> {
         let sizes = level_sizes(levels)?;
         check_total(&sizes, data.len())?;
+        // Each coarser level is the coarse part the finer one left: its smallness is known.
+        let mut small = None;
         for (j, topo) in levels.iter().enumerate().rev() {
-            self.analyze_level_int(topo, &mut data[..sizes[j + 1]])?;
+            small = Some(self.analyze_level_int_with(topo, &mut data[..sizes[j + 1]], small)?);
         }
         Ok(())
     }
@@ -378,8 +408,11 @@ impl BSplineWavelet {
     ) -> Result<()> {
         let sizes = level_sizes(levels)?;
         check_total(&sizes, data.len())?;
+        // Each finer level's coarse part is what the coarser one produced: only the details
+        // need a scan.
+        let mut small = None;
         for (j, topo) in levels.iter().enumerate() {
-            self.synthesize_level_int(topo, &mut data[..sizes[j + 1]])?;
+            small = Some(self.synthesize_level_int_with(topo, &mut data[..sizes[j + 1]], small)?);
         }
         Ok(())
     }
@@ -710,13 +743,21 @@ struct Small {
 }
 
 impl Small {
-    /// Scans the level's data (`V + E + F` entries of the level refined from `t`).
-    fn scan<I: IntCoord>(t: &Topology, data: &[[I; 3]]) -> Small {
+    /// Every part small.
+    const ALL: Small = Small {
+        v: true,
+        e: true,
+        f: true,
+    };
+
+    /// Scans the level's data (`V + E + F` entries of the level refined from `t`); `v` if the
+    /// `V` coarse entries' answer is known.
+    fn scan<I: IntCoord>(t: &Topology, data: &[[I; 3]], v: Option<bool>) -> Small {
         let nv = t.num_vertices as usize;
         let ne = t.num_edges();
         let all = |x: &[[I; 3]]| x.par_chunks(1 << 14).all(all_small);
         Small {
-            v: all(&data[..nv]),
+            v: v.unwrap_or_else(|| all(&data[..nv])),
             e: all(&data[nv..nv + ne]),
             f: all(&data[nv + ne..]),
         }
@@ -798,13 +839,13 @@ fn regular_term2<I: IntCoord, W: LiftWeight>(
 fn floor_div_const2<W: LiftWeight>(n: i64) -> i64 {
     // Table 1's denominators 2Q²: 2, 8, 32, 72, 18, 512, 2048.
     match 2 * W::Q * W::Q {
-        2 => floor_div_const::<2>(n),
-        8 => floor_div_const::<8>(n),
-        18 => floor_div_const::<18>(n),
-        32 => floor_div_const::<32>(n),
-        72 => floor_div_const::<72>(n),
-        512 => floor_div_const::<512>(n),
-        2048 => floor_div_const::<2048>(n),
+        2 => floor_div_const_small::<2>(n),
+        8 => floor_div_const_small::<8>(n),
+        18 => floor_div_const_small::<18>(n),
+        32 => floor_div_const_small::<32>(n),
+        72 => floor_div_const_small::<72>(n),
+        512 => floor_div_const_small::<512>(n),
+        2048 => floor_div_const_small::<2048>(n),
         d => n.div_euclid(d),
     }
 }
@@ -814,13 +855,13 @@ fn floor_div_const2<W: LiftWeight>(n: i64) -> i64 {
 fn floor_div_const1<W: LiftWeight>(n: i64) -> i64 {
     // Table 1's denominators 2Q: 2, 4, 6, 8, 12, 32, 64.
     match 2 * W::Q {
-        2 => floor_div_const::<2>(n),
-        4 => floor_div_const::<4>(n),
-        6 => floor_div_const::<6>(n),
-        8 => floor_div_const::<8>(n),
-        12 => floor_div_const::<12>(n),
-        32 => floor_div_const::<32>(n),
-        64 => floor_div_const::<64>(n),
+        2 => floor_div_const_small::<2>(n),
+        4 => floor_div_const_small::<4>(n),
+        6 => floor_div_const_small::<6>(n),
+        8 => floor_div_const_small::<8>(n),
+        12 => floor_div_const_small::<12>(n),
+        32 => floor_div_const_small::<32>(n),
+        64 => floor_div_const_small::<64>(n),
         d => n.div_euclid(d),
     }
 }
@@ -1139,7 +1180,7 @@ impl<'a> Ctx<'a> {
     /// Integer lift (eqs. 4.8, 4.9) or, if `inverse`, its inverse (eqs. 4.10, 4.11).
     #[cfg(test)]
     fn int_lift<I: IntCoord>(&self, l: IntLift, data: &mut [[I; 3]], inverse: bool) -> Result<()> {
-        let mut small = Small::scan(self.t, data);
+        let mut small = Small::scan(self.t, data, None);
         self.int_lift_tracked(l, data, inverse, &mut small)
     }
 

@@ -55,3 +55,24 @@ pub(crate) fn floor_div_const<const D: i64>(n: i64) -> i64 {
         m.div_euclid(c)
     }
 }
+
+/// [`floor_div_const`] for `|n| < 2^58` (debug-asserted), the bound of the regular formulas'
+/// intermediates (`bertram::FAST_BOUND`): no range check before the multiply-high.
+#[inline(always)]
+pub(crate) fn floor_div_const_small<const D: i64>(n: i64) -> i64 {
+    let k = D.trailing_zeros();
+    let c = D >> k;
+    let m = n >> k;
+    debug_assert!(
+        n.unsigned_abs() < 1 << 58,
+        "{n} / {D} outside the fast bound"
+    );
+    if c == 1 {
+        m
+    } else if c < 32 {
+        let bias = c << 58;
+        (((m + bias) as u64) / c as u64) as i64 - (1 << 58)
+    } else {
+        m.div_euclid(c)
+    }
+}

@@ -8,6 +8,7 @@ use glam::DVec3;
 use super::*;
 use crate::generate;
 use crate::subdivision::{subdivide, Refinement};
+use crate::wavelet::floor_div_const;
 
 /// splitmix64: deterministic noise without a dependency.
 struct Rng(u64);
@@ -311,10 +312,39 @@ fn integer_fast_path_matches_i128() {
                     run(true, false, &mut fast);
                     run(false, false, &mut slow);
                     assert_eq!(fast, slow, "{name} {degree:?} {boundary:?} {scale} forward");
+                    // The whole-hierarchy transforms carry each level's smallness to the next
+                    // instead of scanning it again: the same coefficients.
+                    let w = BSplineWavelet { degree, boundary };
+                    let mut public = fine.clone();
+                    w.analyze_int(&r.topologies, &mut public).unwrap();
+                    assert_eq!(
+                        public, slow,
+                        "{name} {degree:?} {boundary:?} {scale} analyze_int"
+                    );
                     run(true, true, &mut fast);
                     run(false, true, &mut slow);
                     assert_eq!(fast, slow, "{name} {degree:?} {boundary:?} {scale} inverse");
                     assert_eq!(fast, fine);
+                    w.synthesize_int(&r.topologies, &mut public).unwrap();
+                    assert_eq!(
+                        public, fine,
+                        "{name} {degree:?} {boundary:?} {scale} synthesize_int"
+                    );
+                    // Arbitrary coefficients, small except for the finest face details, far
+                    // beyond the fast bound (the quintic's first inverse pass, reading them,
+                    // would overflow `i64`): the synthesis scans the details it did not
+                    // produce.
+                    let mut coeffs: Vec<[i64; 3]> =
+                        fine.iter().map(|p| p.map(|c| c / 1000)).collect();
+                    let last = &r.topologies[r.topologies.len() - 1];
+                    let f0 = last.num_vertices as usize + last.num_edges();
+                    for c in &mut coeffs[f0..] {
+                        c[0] = (1 << 59) + rng.int(1000);
+                    }
+                    let (mut a, mut b) = (coeffs.clone(), coeffs);
+                    w.synthesize_int(&r.topologies, &mut a).unwrap();
+                    run(false, true, &mut b);
+                    assert_eq!(a, b, "{name} {degree:?} {boundary:?} {scale} large details");
                 }
             }
         }
@@ -903,6 +933,9 @@ fn floor_div_const_equals_div_euclid() {
         }
         for n in values {
             assert_eq!(floor_div_const::<D>(n), n.div_euclid(D), "{n} / {D}");
+            if n.unsigned_abs() < 1 << 58 {
+                assert_eq!(floor_div_const_small::<D>(n), n.div_euclid(D), "{n} / {D}");
+            }
         }
     }
     check::<2>();
