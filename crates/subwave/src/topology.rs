@@ -22,6 +22,8 @@
 //! (OpenSubdiv's convention; Maret's ordered 1-ring `R_i` is the sequence of the edges' other
 //! ends, [`Topology::ring`]). A non-manifold vertex keeps its faces and edges in scan order.
 
+use rayon::prelude::*;
+
 use crate::mesh::Mesh;
 
 /// Classification of a vertex's neighbourhood.
@@ -410,159 +412,66 @@ impl Topology {
     }
 
     /// Orders each vertex's faces and edges counter-clockwise (Maret Algorithm 4) and
-    /// classifies the vertex.
+    /// classifies the vertex. Vertices are independent (each rewrites only its own ranges of
+    /// `vertex_faces`, `vertex_face_corners` and `vertex_edges`): chunks of them run in
+    /// parallel.
     fn order_rings(&mut self) {
+        /// Vertices per parallel work item.
+        const CHUNK: usize = 2048;
         let nv = self.num_vertices as usize;
-        let mut faces_buf: Vec<u32> = Vec::new();
-        let mut corners_buf: Vec<u16> = Vec::new();
-        let mut edges_buf: Vec<u32> = Vec::new();
-        let mut used: Vec<bool> = Vec::new();
-        let mut fan_of: Vec<u32> = Vec::new();
-        for v in 0..nv {
-            let (fa, fb) = (
-                self.vertex_face_offsets[v] as usize,
-                self.vertex_face_offsets[v + 1] as usize,
-            );
-            let (ea, eb) = (
-                self.vertex_edge_offsets[v] as usize,
-                self.vertex_edge_offsets[v + 1] as usize,
-            );
-            let n = fb - fa;
-            if n == 0 {
-                self.vertex_kinds[v] = VertexKind::Isolated;
-                continue;
-            }
-            // Per incident corner: outgoing and incoming edge.
-            let out_in = |s: &Self, k: usize| -> (u32, u32) {
-                let f = s.vertex_faces[fa + k] as usize;
-                let i = s.vertex_face_corners[fa + k] as usize;
-                let (a, b) = (s.face_offsets[f] as usize, s.face_offsets[f + 1] as usize);
-                let prev = if i == 0 { b - 1 } else { a + i - 1 };
-                (s.face_edges[a + i], s.face_edges[prev])
-            };
-            let nfaces = |s: &Self, e: u32| {
-                s.edge_face_offsets[e as usize + 1] - s.edge_face_offsets[e as usize]
-            };
-
-            // Count edge-connected fans (through any incident edge, manifold or not).
-            fan_of.clear();
-            fan_of.resize(n, u32::MAX);
-            let mut fans = 0u32;
-            let mut nonmanifold_edge = false;
-            for k0 in 0..n {
-                if fan_of[k0] != u32::MAX {
-                    continue;
-                }
-                fan_of[k0] = fans;
-                let mut stack = vec![k0];
-                while let Some(k) = stack.pop() {
-                    let (o, i) = out_in(self, k);
-                    for (k2, fan) in fan_of.iter_mut().enumerate() {
-                        if *fan == u32::MAX {
-                            let (o2, i2) = out_in(self, k2);
-                            if o2 == o || o2 == i || i2 == o || i2 == i {
-                                *fan = fans;
-                                stack.push(k2);
-                            }
-                        }
-                    }
-                }
-                fans += 1;
-            }
-            for &e in &self.vertex_edges[ea..eb] {
-                if nfaces(self, e) > 2 {
-                    nonmanifold_edge = true;
-                }
-            }
-            if fans > 1 {
-                self.vertex_kinds[v] = VertexKind::NonManifold;
-                continue;
-            }
-            if nonmanifold_edge {
-                self.vertex_kinds[v] = VertexKind::Irregular;
-                continue;
-            }
-            // One fan of manifold edges: walk it. Find a start corner: on a boundary, the
-            // corner whose outgoing edge is a boundary edge.
-            let mut start = 0usize;
-            let mut boundary = false;
-            let mut start_flipped = false;
-            for k in 0..n {
-                let (o, i) = out_in(self, k);
-                if nfaces(self, o) == 1 {
-                    start = k;
-                    boundary = true;
-                    start_flipped = false;
-                    break;
-                }
-                if nfaces(self, i) == 1 && !boundary {
-                    // Only an incoming boundary edge so far: orientation flips somewhere.
-                    start = k;
-                    boundary = true;
-                    start_flipped = true;
-                }
-            }
-            faces_buf.clear();
-            corners_buf.clear();
-            edges_buf.clear();
-            used.clear();
-            used.resize(n, false);
-            let mut k = start;
-            let (o, i) = out_in(self, k);
-            let (entry, mut exit) = if start_flipped { (i, o) } else { (o, i) };
-            let mut consistent = !start_flipped;
-            edges_buf.push(entry);
-            loop {
-                used[k] = true;
-                faces_buf.push(self.vertex_faces[fa + k]);
-                corners_buf.push(self.vertex_face_corners[fa + k]);
-                edges_buf.push(exit);
-                // The other corner sharing `exit`.
-                let mut next = None;
-                for k2 in 0..n {
-                    if k2 != k {
-                        let (o2, i2) = out_in(self, k2);
-                        if o2 == exit {
-                            next = Some((k2, i2, false));
-                            break;
-                        }
-                        if i2 == exit {
-                            next = Some((k2, o2, true));
-                            break;
-                        }
-                    }
-                }
-                match next {
-                    Some((k2, e_out, flipped)) if !used[k2] => {
-                        if flipped {
-                            consistent = false;
-                        }
-                        k = k2;
-                        exit = e_out;
-                    }
-                    _ => break,
-                }
-            }
-            if !boundary {
-                // Closed fan: the last exit edge is the first entry edge; drop the duplicate.
-                edges_buf.pop();
-            }
-            let complete = faces_buf.len() == n && edges_buf.len() == eb - ea;
-            if !complete {
-                self.vertex_kinds[v] = VertexKind::Irregular;
-                continue;
-            }
-            self.vertex_faces[fa..fb].copy_from_slice(&faces_buf);
-            self.vertex_face_corners[fa..fb].copy_from_slice(&corners_buf);
-            self.vertex_edges[ea..eb].copy_from_slice(&edges_buf);
-            self.vertex_kinds[v] = if !consistent {
-                VertexKind::Irregular
-            } else if boundary {
-                VertexKind::Boundary
-            } else {
-                VertexKind::Interior
-            };
+        let Topology {
+            face_offsets,
+            face_edges,
+            edge_face_offsets,
+            vertex_face_offsets,
+            vertex_faces,
+            vertex_face_corners,
+            vertex_edge_offsets,
+            vertex_edges,
+            vertex_kinds,
+            ..
+        } = self;
+        let tables = RingTables {
+            face_offsets,
+            face_edges,
+            edge_face_offsets,
+        };
+        // Each chunk's disjoint slices of the vertex tables.
+        let mut jobs = Vec::with_capacity(nv.div_ceil(CHUNK));
+        let (mut faces, mut corners, mut edges, mut kinds) = (
+            &mut vertex_faces[..],
+            &mut vertex_face_corners[..],
+            &mut vertex_edges[..],
+            &mut vertex_kinds[..nv],
+        );
+        for v0 in (0..nv).step_by(CHUNK) {
+            let v1 = (v0 + CHUNK).min(nv);
+            let nf = (vertex_face_offsets[v1] - vertex_face_offsets[v0]) as usize;
+            let ne = (vertex_edge_offsets[v1] - vertex_edge_offsets[v0]) as usize;
+            let (f, fr) = std::mem::take(&mut faces).split_at_mut(nf);
+            let (c, cr) = std::mem::take(&mut corners).split_at_mut(nf);
+            let (e, er) = std::mem::take(&mut edges).split_at_mut(ne);
+            let (k, kr) = std::mem::take(&mut kinds).split_at_mut(v1 - v0);
+            (faces, corners, edges, kinds) = (fr, cr, er, kr);
+            jobs.push((v0, f, c, e, k));
         }
+        let (vfo, veo) = (&vertex_face_offsets[..], &vertex_edge_offsets[..]);
+        jobs.into_par_iter()
+            .for_each(|(v0, faces, corners, edges, kinds)| {
+                let mut scratch = RingScratch::default();
+                let (fbase, ebase) = (vfo[v0] as usize, veo[v0] as usize);
+                for (j, kind) in kinds.iter_mut().enumerate() {
+                    let v = v0 + j;
+                    let fr = vfo[v] as usize - fbase..vfo[v + 1] as usize - fbase;
+                    let er = veo[v] as usize - ebase..veo[v + 1] as usize - ebase;
+                    *kind = tables.order_ring(
+                        &mut faces[fr.clone()],
+                        &mut corners[fr],
+                        &mut edges[er],
+                        &mut scratch,
+                    );
+                }
+            });
     }
 
     fn apply_tags(&mut self, mesh: &Mesh) {
@@ -900,6 +809,171 @@ impl UnionFind {
         self.parent[b as usize] = a;
         self.size[a as usize] += self.size[b as usize];
         true
+    }
+}
+
+/// The face and edge tables [`Topology::order_rings`] reads.
+struct RingTables<'a> {
+    face_offsets: &'a [u32],
+    face_edges: &'a [u32],
+    edge_face_offsets: &'a [u32],
+}
+
+/// Reused buffers of [`RingTables::order_ring`].
+#[derive(Default)]
+struct RingScratch {
+    /// Outgoing and incoming edge of each incident corner.
+    out_in: Vec<(u32, u32)>,
+    fan_of: Vec<u32>,
+    stack: Vec<usize>,
+    used: Vec<bool>,
+    faces: Vec<u32>,
+    corners: Vec<u16>,
+    edges: Vec<u32>,
+}
+
+impl RingTables<'_> {
+    /// Number of faces of edge `e`.
+    #[inline]
+    fn nfaces(&self, e: u32) -> u32 {
+        self.edge_face_offsets[e as usize + 1] - self.edge_face_offsets[e as usize]
+    }
+
+    /// Orders one vertex's incident `faces` (with their `corners`) and `edges` in place when
+    /// they form one manifold fan, and returns the vertex's kind.
+    fn order_ring(
+        &self,
+        faces: &mut [u32],
+        corners: &mut [u16],
+        edges: &mut [u32],
+        s: &mut RingScratch,
+    ) -> VertexKind {
+        let n = faces.len();
+        if n == 0 {
+            return VertexKind::Isolated;
+        }
+        // Per incident corner: outgoing and incoming edge.
+        s.out_in.clear();
+        s.out_in
+            .extend(faces.iter().zip(corners.iter()).map(|(&f, &i)| {
+                let (f, i) = (f as usize, i as usize);
+                let (a, b) = (
+                    self.face_offsets[f] as usize,
+                    self.face_offsets[f + 1] as usize,
+                );
+                let prev = if i == 0 { b - 1 } else { a + i - 1 };
+                (self.face_edges[a + i], self.face_edges[prev])
+            }));
+        let oi = &s.out_in;
+
+        // Count edge-connected fans (through any incident edge, manifold or not).
+        s.fan_of.clear();
+        s.fan_of.resize(n, u32::MAX);
+        let mut fans = 0u32;
+        for k0 in 0..n {
+            if s.fan_of[k0] != u32::MAX {
+                continue;
+            }
+            s.fan_of[k0] = fans;
+            s.stack.clear();
+            s.stack.push(k0);
+            while let Some(k) = s.stack.pop() {
+                let (o, i) = oi[k];
+                for (k2, fan) in s.fan_of.iter_mut().enumerate() {
+                    if *fan == u32::MAX {
+                        let (o2, i2) = oi[k2];
+                        if o2 == o || o2 == i || i2 == o || i2 == i {
+                            *fan = fans;
+                            s.stack.push(k2);
+                        }
+                    }
+                }
+            }
+            fans += 1;
+        }
+        if fans > 1 {
+            return VertexKind::NonManifold;
+        }
+        if edges.iter().any(|&e| self.nfaces(e) > 2) {
+            return VertexKind::Irregular;
+        }
+        // One fan of manifold edges: walk it. Find a start corner: on a boundary, the
+        // corner whose outgoing edge is a boundary edge.
+        let mut start = 0usize;
+        let mut boundary = false;
+        let mut start_flipped = false;
+        for (k, &(o, i)) in oi.iter().enumerate() {
+            if self.nfaces(o) == 1 {
+                start = k;
+                boundary = true;
+                start_flipped = false;
+                break;
+            }
+            if self.nfaces(i) == 1 && !boundary {
+                // Only an incoming boundary edge so far: orientation flips somewhere.
+                start = k;
+                boundary = true;
+                start_flipped = true;
+            }
+        }
+        s.faces.clear();
+        s.corners.clear();
+        s.edges.clear();
+        s.used.clear();
+        s.used.resize(n, false);
+        let mut k = start;
+        let (o, i) = oi[k];
+        let (entry, mut exit) = if start_flipped { (i, o) } else { (o, i) };
+        let mut consistent = !start_flipped;
+        s.edges.push(entry);
+        loop {
+            s.used[k] = true;
+            s.faces.push(faces[k]);
+            s.corners.push(corners[k]);
+            s.edges.push(exit);
+            // The other corner sharing `exit`.
+            let mut next = None;
+            for (k2, &(o2, i2)) in oi.iter().enumerate() {
+                if k2 != k {
+                    if o2 == exit {
+                        next = Some((k2, i2, false));
+                        break;
+                    }
+                    if i2 == exit {
+                        next = Some((k2, o2, true));
+                        break;
+                    }
+                }
+            }
+            match next {
+                Some((k2, e_out, flipped)) if !s.used[k2] => {
+                    if flipped {
+                        consistent = false;
+                    }
+                    k = k2;
+                    exit = e_out;
+                }
+                _ => break,
+            }
+        }
+        if !boundary {
+            // Closed fan: the last exit edge is the first entry edge; drop the duplicate.
+            s.edges.pop();
+        }
+        let complete = s.faces.len() == n && s.edges.len() == edges.len();
+        if !complete {
+            return VertexKind::Irregular;
+        }
+        faces.copy_from_slice(&s.faces);
+        corners.copy_from_slice(&s.corners);
+        edges.copy_from_slice(&s.edges);
+        if !consistent {
+            VertexKind::Irregular
+        } else if boundary {
+            VertexKind::Boundary
+        } else {
+            VertexKind::Interior
+        }
     }
 }
 
