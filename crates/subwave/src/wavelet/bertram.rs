@@ -1398,8 +1398,9 @@ impl<'a> Ctx<'a> {
                     let o = &t.edge_face_offsets[e0..=e0 + out.len()];
                     for (k, x) in out.iter_mut().enumerate() {
                         let idx = &t.edge_faces[o[k] as usize..o[k + 1] as usize];
-                        match regular_term1::<I, W>(x, idx, src, inverse) {
-                            Some(y) if regular => *x = y,
+                        // The regular formula only on small inputs (its bound).
+                        match regular.then(|| regular_term1::<I, W>(x, idx, src, inverse)) {
+                            Some(Some(y)) => *x = y,
                             _ => general(e0 + k, x),
                         }
                     }
@@ -1408,8 +1409,8 @@ impl<'a> Ctx<'a> {
                 par_chunks_small(e, |e0, out| {
                     let ev = &t.edge_vertices[e0..e0 + out.len()];
                     for (k, (x, idx)) in out.iter_mut().zip(ev).enumerate() {
-                        match regular_term1::<I, W>(x, idx, src, inverse) {
-                            Some(y) if regular => *x = y,
+                        match regular.then(|| regular_term1::<I, W>(x, idx, src, inverse)) {
+                            Some(Some(y)) => *x = y,
                             _ => general(e0 + k, x),
                         }
                     }
