@@ -325,23 +325,24 @@ impl BSplineWavelet {
         coarse: &Topology,
         data: &mut [[I; 3]],
     ) -> Result<()> {
-        self.analyze_level_int_with(coarse, data, None).map(|_| ())
+        self.analyze_level_int_with(coarse, data, false).map(|_| ())
     }
 
-    /// [`BSplineWavelet::analyze_level_int`] with `all_small` = `Some(true)` if every value of
-    /// `data` is known to lie within [`FAST_BOUND`] (no scan); returns whether the coarse
-    /// part left in `data[..V]` does.
+    /// [`BSplineWavelet::analyze_level_int`], skipping the scan if every value of `data` is
+    /// known to lie within [`FAST_BOUND`] (`known_small`); returns whether the coarse part
+    /// left in `data[..V]` does.
     fn analyze_level_int_with<I: IntCoord>(
         &self,
         coarse: &Topology,
         data: &mut [[I; 3]],
-        all_small: Option<bool>,
+        known_small: bool,
     ) -> Result<bool> {
         check_len(coarse, data.len())?;
         let ctx = Ctx::new(coarse, self.boundary);
-        let mut small = match all_small {
-            Some(true) => Small::ALL,
-            _ => Small::scan(coarse, data, None),
+        let mut small = if known_small {
+            Small::ALL
+        } else {
+            Small::scan(coarse, data, false)
         };
         for l in self.degree.integer_lifts() {
             ctx.int_lift_tracked(*l, data, false, &mut small)?;
@@ -359,22 +360,22 @@ impl BSplineWavelet {
         coarse: &Topology,
         data: &mut [[I; 3]],
     ) -> Result<()> {
-        self.synthesize_level_int_with(coarse, data, None)
+        self.synthesize_level_int_with(coarse, data, false)
             .map(|_| ())
     }
 
-    /// [`BSplineWavelet::synthesize_level_int`] with `coarse_small` = `Some(true)` if the
-    /// coarse part `data[..V]` is known to lie within [`FAST_BOUND`] (only the details are
-    /// scanned); returns whether all of `data` does afterwards.
+    /// [`BSplineWavelet::synthesize_level_int`], scanning only the details if the coarse part
+    /// `data[..V]` is known to lie within [`FAST_BOUND`] (`coarse_small`); returns whether all
+    /// of `data` does afterwards.
     fn synthesize_level_int_with<I: IntCoord>(
         &self,
         coarse: &Topology,
         data: &mut [[I; 3]],
-        coarse_small: Option<bool>,
+        coarse_small: bool,
     ) -> Result<bool> {
         check_len(coarse, data.len())?;
         let ctx = Ctx::new(coarse, self.boundary);
-        let mut small = Small::scan(coarse, data, coarse_small.filter(|&b| b));
+        let mut small = Small::scan(coarse, data, coarse_small);
         for l in self.degree.integer_lifts().iter().rev() {
             ctx.int_lift_tracked(*l, data, true, &mut small)?;
         }
@@ -390,9 +391,9 @@ impl BSplineWavelet {
         let sizes = level_sizes(levels)?;
         check_total(&sizes, data.len())?;
         // Each coarser level is the coarse part the finer one left: its smallness is known.
-        let mut small = None;
+        let mut small = false;
         for (j, topo) in levels.iter().enumerate().rev() {
-            small = Some(self.analyze_level_int_with(topo, &mut data[..sizes[j + 1]], small)?);
+            small = self.analyze_level_int_with(topo, &mut data[..sizes[j + 1]], small)?;
         }
         Ok(())
     }
@@ -410,9 +411,9 @@ impl BSplineWavelet {
         check_total(&sizes, data.len())?;
         // Each finer level's coarse part is what the coarser one produced: only the details
         // need a scan.
-        let mut small = None;
+        let mut small = false;
         for (j, topo) in levels.iter().enumerate() {
-            small = Some(self.synthesize_level_int_with(topo, &mut data[..sizes[j + 1]], small)?);
+            small = self.synthesize_level_int_with(topo, &mut data[..sizes[j + 1]], small)?;
         }
         Ok(())
     }
@@ -750,14 +751,14 @@ impl Small {
         f: true,
     };
 
-    /// Scans the level's data (`V + E + F` entries of the level refined from `t`); `v` if the
-    /// `V` coarse entries' answer is known.
-    fn scan<I: IntCoord>(t: &Topology, data: &[[I; 3]], v: Option<bool>) -> Small {
+    /// Scans the level's data (`V + E + F` entries of the level refined from `t`), all but
+    /// the `V` coarse entries if they are known to be small (`v_small`).
+    fn scan<I: IntCoord>(t: &Topology, data: &[[I; 3]], v_small: bool) -> Small {
         let nv = t.num_vertices as usize;
         let ne = t.num_edges();
         let all = |x: &[[I; 3]]| x.par_chunks(1 << 14).all(all_small);
         Small {
-            v: v.unwrap_or_else(|| all(&data[..nv])),
+            v: v_small || all(&data[..nv]),
             e: all(&data[nv..nv + ne]),
             f: all(&data[nv + ne..]),
         }
@@ -1180,7 +1181,7 @@ impl<'a> Ctx<'a> {
     /// Integer lift (eqs. 4.8, 4.9) or, if `inverse`, its inverse (eqs. 4.10, 4.11).
     #[cfg(test)]
     fn int_lift<I: IntCoord>(&self, l: IntLift, data: &mut [[I; 3]], inverse: bool) -> Result<()> {
-        let mut small = Small::scan(self.t, data, None);
+        let mut small = Small::scan(self.t, data, false);
         self.int_lift_tracked(l, data, inverse, &mut small)
     }
 

@@ -44,27 +44,24 @@ pub mod triangle_int;
 #[inline(always)]
 pub(crate) fn floor_div_const<const D: i64>(n: i64) -> i64 {
     let k = D.trailing_zeros();
-    let c = D >> k;
     let m = n >> k;
-    if c == 1 {
-        m
-    } else if m.unsigned_abs() < 1 << 58 && c < 32 {
-        let bias = c << 58;
-        (((m + bias) as u64) / c as u64) as i64 - (1 << 58)
+    if m.unsigned_abs() < 1 << 58 {
+        floor_div_const_small::<D>(n)
     } else {
-        m.div_euclid(c)
+        m.div_euclid(D >> k)
     }
 }
 
-/// [`floor_div_const`] for `|n| < 2^58` (debug-asserted), the bound of the regular formulas'
-/// intermediates (`bertram::FAST_BOUND`): no range check before the multiply-high.
+/// [`floor_div_const`] for `|n >> k| < 2^58` (`2^k` the power-of-two part of `D`;
+/// debug-asserted), which the regular formulas' intermediates satisfy
+/// (`bertram::FAST_BOUND`): no range check before the multiply-high.
 #[inline(always)]
 pub(crate) fn floor_div_const_small<const D: i64>(n: i64) -> i64 {
     let k = D.trailing_zeros();
     let c = D >> k;
     let m = n >> k;
     debug_assert!(
-        n.unsigned_abs() < 1 << 58,
+        m.unsigned_abs() < 1 << 58,
         "{n} / {D} outside the fast bound"
     );
     if c == 1 {
