@@ -222,6 +222,7 @@ impl Topology {
             edge_vertices,
             order_rings,
             None,
+            true,
         )
     }
 
@@ -230,6 +231,16 @@ impl Topology {
     /// `offsets` are the vertex-face, vertex-edge and edge-face offsets, each as a leading 0
     /// followed by the `n + 1` offsets (the layout of [`Topology::counting_offsets`]). The
     /// tables are those of [`Topology::from_edges`] when the offsets are right.
+    ///
+    /// Without `vertex_faces`, the vertex-face relation keeps only its offsets (the face count
+    /// of each vertex): `vertex_faces` and `vertex_face_corners` stay empty, so that
+    /// [`Topology::has_vertex_faces`] is false and [`Topology::vertex_faces`] panics, and a
+    /// consumer that needs a vertex's faces gathers them with
+    /// [`Topology::vertex_faces_from_edges`]. The refiner builds such lean levels when it
+    /// drops them after use and its fast paths read only the counts (a vertex-face scatter
+    /// is the largest of the three counting sorts). Panics if `order_rings` is asked without
+    /// `vertex_faces`.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn from_edges_counted(
         nv: usize,
         face_offsets: Vec<u32>,
@@ -238,7 +249,12 @@ impl Topology {
         edge_vertices: Vec<[u32; 2]>,
         order_rings: bool,
         offsets: Option<[Vec<u32>; 3]>,
+        vertex_faces: bool,
     ) -> Self {
+        assert!(
+            vertex_faces || !order_rings,
+            "ordering rings needs the vertex-face table"
+        );
         let ne = edge_vertices.len();
         // Offsets whose sizes or totals disagree with the tables are counted instead.
         let fits = |o: &Vec<u32>, n: usize, total: usize| {
@@ -261,7 +277,19 @@ impl Topology {
             || Self::edge_face_table(ne, &face_offsets, &face_edges, ef),
             || {
                 rayon::join(
-                    || Self::vertex_face_table(nv, &face_offsets, &face_vertices, vf),
+                    || {
+                        if vertex_faces {
+                            Self::vertex_face_table(nv, &face_offsets, &face_vertices, vf)
+                        } else {
+                            let mut off = vf.unwrap_or_else(|| {
+                                Self::counting_offsets(nv, face_vertices.iter().copied())
+                            });
+                            // The counting layout's leading 0 dropped: the start of each
+                            // vertex's faces, then the total.
+                            off.remove(0);
+                            (off, Vec::new(), Vec::new())
+                        }
+                    },
                     || Self::vertex_edge_table(nv, &edge_vertices, ve),
                 )
             },
@@ -536,6 +564,36 @@ impl Topology {
     pub fn vertex_faces(&self, v: usize) -> &[u32] {
         &self.vertex_faces
             [self.vertex_face_offsets[v] as usize..self.vertex_face_offsets[v + 1] as usize]
+    }
+
+    /// False on a lean refined level (see [`Topology::from_edges_counted`]) whose
+    /// vertex-face relation holds only its offsets; true on every topology the library
+    /// hands out.
+    #[inline]
+    pub fn has_vertex_faces(&self) -> bool {
+        self.vertex_faces.len() == self.face_vertices.len()
+    }
+
+    /// The faces around `v` in face order with `v`'s corner in each, into `faces` and
+    /// `corners` (cleared first), gathered from the faces of `v`'s edges: what
+    /// [`Topology::vertex_faces`] and [`Topology::vertex_face_corners`] hold when rings are not
+    /// ordered, for levels built without them. Linear in the faces of `v`'s edges (times the
+    /// valence for the corners).
+    pub fn vertex_faces_from_edges(&self, v: usize, faces: &mut Vec<u32>, corners: &mut Vec<u16>) {
+        faces.clear();
+        corners.clear();
+        for &e in self.vertex_edges(v) {
+            faces.extend_from_slice(self.edge_faces(e as usize));
+        }
+        faces.sort_unstable();
+        faces.dedup();
+        corners.extend(faces.iter().map(|&f| {
+            let i = self
+                .face_vertices(f as usize)
+                .iter()
+                .position(|&x| x as usize == v);
+            i.map_or(0, |i| i.min(u16::MAX as usize) as u16)
+        }));
     }
 
     /// Local index of `v` in each face of [`Topology::vertex_faces`].

@@ -314,8 +314,12 @@ impl Refinement {
             };
             let child = || {
                 if level + 1 < opts.levels {
-                    let (mut child, halves) =
-                        refine::refine_topology(&topo, split, rules.needs_rings());
+                    let (mut child, halves) = refine::refine_topology_with(
+                        &topo,
+                        split,
+                        rules.needs_rings(),
+                        keep_topologies || !lean_levels(split, rules.as_ref()),
+                    );
                     child_sharpness(&topo, &mut child, &halves, opts.creasing);
                     Next::Child(Box::new(child))
                 } else {
@@ -434,6 +438,14 @@ impl Refinement {
             ..Mesh::new()
         }
     }
+}
+
+/// Whether the refiner may build the levels it drops after use lean (without their
+/// vertex-face table, see [`Topology::from_edges_counted`]): on triangle splits whose rules
+/// need no ordered rings, the fast paths of [`stencil`] read only each vertex's face count,
+/// and the few vertices that take the general path gather their faces from their edges.
+pub(crate) fn lean_levels(split: Split, rules: &dyn Rules) -> bool {
+    split == Split::Triangles && !rules.needs_rings()
 }
 
 /// A level-0 topology ready to refine: the scheme's rules, its split, the topology with the

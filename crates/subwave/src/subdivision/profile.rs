@@ -155,7 +155,10 @@ fn topology_levels(mesh: &Mesh, opts: &SubdivideOptions) -> Vec<Topology> {
     let mut levels = Vec::with_capacity(opts.levels as usize);
     for level in 0..opts.levels {
         if level + 1 < opts.levels {
-            let (mut child, halves) = refine::refine_topology(&topo, p.split, false);
+            // The levels are only evaluated, as `subdivide` does: lean where it builds them so.
+            let vertex_faces = !super::lean_levels(p.split, p.rules.as_ref());
+            let (mut child, halves) =
+                refine::refine_topology_with(&topo, p.split, false, vertex_faces);
             child_sharpness(&topo, &mut child, &halves, opts.creasing);
             levels.push(std::mem::replace(&mut topo, child));
         } else {

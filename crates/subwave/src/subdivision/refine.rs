@@ -339,6 +339,18 @@ pub fn refine_topology(
     split: Split,
     order_rings: bool,
 ) -> (Topology, Vec<[u32; 2]>) {
+    refine_topology_with(parent, split, order_rings, true)
+}
+
+/// [`refine_topology`]; without `vertex_faces`, a lean level whose vertex-face relation
+/// keeps only its offsets (see [`Topology::from_edges_counted`]; `order_rings` must then be
+/// false).
+pub(crate) fn refine_topology_with(
+    parent: &Topology,
+    split: Split,
+    order_rings: bool,
+    vertex_faces: bool,
+) -> (Topology, Vec<[u32; 2]>) {
     let nv = child_vertex_count(parent, split);
     let c = child_edges(parent, split);
     let offsets = child_offsets(parent, split, &c);
@@ -350,6 +362,7 @@ pub fn refine_topology(
         c.edge_vertices,
         order_rings,
         offsets,
+        vertex_faces,
     );
     (topo, c.edge_halves)
 }
@@ -466,6 +479,21 @@ mod tests {
         assert_eq!(grand.vertex_face_corners, scan.vertex_face_corners);
         assert_eq!(grand.vertex_edges, scan.vertex_edges);
         assert_eq!(grand.vertex_kinds, scan.vertex_kinds);
+        // A lean child: the same tables but the vertex faces, which its vertices gather from
+        // their edges exactly as the scan order has them.
+        let (lean, _) = refine_topology_with(&child, split, false, false);
+        assert!(grand.has_vertex_faces() && !lean.has_vertex_faces());
+        assert!(lean.vertex_faces.is_empty() && lean.vertex_face_corners.is_empty());
+        assert_eq!(lean.vertex_face_offsets, grand.vertex_face_offsets);
+        assert_eq!(lean.vertex_edges, grand.vertex_edges);
+        assert_eq!(lean.edge_faces, grand.edge_faces);
+        assert_eq!(lean.vertex_kinds, grand.vertex_kinds);
+        let (mut faces, mut corners) = (Vec::new(), Vec::new());
+        for v in 0..lean.num_vertices as usize {
+            lean.vertex_faces_from_edges(v, &mut faces, &mut corners);
+            assert_eq!(faces, scan.vertex_faces(v), "vertex {v}");
+            assert_eq!(corners, scan.vertex_face_corners(v), "vertex {v}");
+        }
     }
 
     #[test]

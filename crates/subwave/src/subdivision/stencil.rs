@@ -222,8 +222,16 @@ fn sector(topo: &Topology, e: u32, v: u32, positions: &[DVec3]) -> Option<Sector
         return None;
     }
     // Flood the faces around v from e's faces across smooth edges incident to v.
-    let faces = topo.vertex_faces(v as usize);
-    let corners = topo.vertex_face_corners(v as usize);
+    let (mut gathered, mut gathered_corners) = (Vec::new(), Vec::new());
+    let (faces, corners) = if topo.has_vertex_faces() {
+        (
+            topo.vertex_faces(v as usize),
+            topo.vertex_face_corners(v as usize),
+        )
+    } else {
+        topo.vertex_faces_from_edges(v as usize, &mut gathered, &mut gathered_corners);
+        (&gathered[..], &gathered_corners[..])
+    };
     let mut in_sector = vec![false; faces.len()];
     let mut stack: Vec<usize> = Vec::new();
     for &f in topo.edge_faces(e as usize) {
@@ -432,6 +440,9 @@ struct Scratch {
     ring_verts: [Vec<u32>; 2],
 
     arities: Vec<u32>,
+    /// A vertex's faces and corners, gathered on a lean level (no vertex-face table).
+    faces: Vec<u32>,
+    corners: Vec<u16>,
 }
 
 /// One level's stencil generator: the single place that turns masks into (index, weight)
@@ -449,6 +460,9 @@ struct Level<'a> {
     /// Per vertex: the number of incident edges with nonzero sharpness (saturating), or 255
     /// if the vertex has nonzero corner sharpness; 0 means the vertex is smooth.
     features: Vec<u8>,
+    /// `topo` has its vertex-face table (else it is a lean level: see
+    /// [`Topology::from_edges_counted`]).
+    vertex_faces: bool,
     fast: Fast,
     nv: usize,
     ne: usize,
@@ -485,6 +499,7 @@ impl<'a> Level<'a> {
             topo,
             quads,
             features,
+            vertex_faces: topo.has_vertex_faces(),
             ctx,
             fast: Fast::new(&cache),
             cache,
@@ -513,7 +528,12 @@ impl<'a> Level<'a> {
         if j < nv {
             let v = j;
             let edges = topo.vertex_edges(v);
-            let faces = topo.vertex_faces(v);
+            let faces = if self.vertex_faces {
+                topo.vertex_faces(v)
+            } else {
+                topo.vertex_faces_from_edges(v, &mut s.faces, &mut s.corners);
+                &s.faces[..]
+            };
             if edges.is_empty() {
                 s.b.add(v as u32, 1.0);
                 return;
@@ -723,7 +743,7 @@ impl Level<'_> {
                 return Some(acc);
             }
             let [wv, wr, wd] = self.fast.quad_vertex[n]?;
-            if topo.face_arity != 4 {
+            if topo.face_arity != 4 || !self.vertex_faces {
                 return None;
             }
             if n == 4 {
@@ -916,7 +936,8 @@ impl Level<'_> {
         let rings = [0, 1].map(|k| EndRing {
             sharpness: &s.ring_sharp[k],
             vertex_sharpness: topo.vertex_sharpness[ends[k] as usize],
-            num_faces: topo.vertex_faces(ends[k] as usize).len(),
+            num_faces: (topo.vertex_face_offsets[ends[k] as usize + 1]
+                - topo.vertex_face_offsets[ends[k] as usize]) as usize,
         });
         self.ctx
             .rules
