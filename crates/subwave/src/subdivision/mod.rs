@@ -293,9 +293,12 @@ impl Refinement {
         if opts.levels == 0 {
             (face_offsets, face_vertices) = (topo.face_offsets.clone(), topo.face_vertices.clone());
         }
-        /// What a level hands to the next: its child topology, or the finest level's faces.
+        // The current level's `stencil::vertex_features`, once derived with it.
+        let mut features: Option<Vec<u8>> = None;
+        /// What a level hands to the next: its child topology with its features, or the
+        /// finest level's faces.
         enum Next {
-            Child(Box<Topology>),
+            Child(Box<Topology>, Vec<u8>),
             Finest((Vec<u32>, Vec<u32>), (Vec<EdgeTag>, Vec<VertexTag>)),
         }
         for level in 0..opts.levels {
@@ -303,6 +306,7 @@ impl Refinement {
                 rules: rules.as_ref(),
                 creasing: opts.creasing,
                 positions: &positions,
+                features: features.as_deref(),
             };
             let values = || {
                 if keep_stencils {
@@ -321,7 +325,8 @@ impl Refinement {
                         keep_topologies || !lean_levels(split, rules.as_ref()),
                     );
                     child_sharpness(&topo, &mut child, &halves, opts.creasing);
-                    Next::Child(Box::new(child))
+                    let features = child_features(&topo, &child, &halves);
+                    Next::Child(Box::new(child), features)
                 } else {
                     Next::Finest(
                         refine::child_faces(&topo, split),
@@ -340,7 +345,10 @@ impl Refinement {
             positions = next_positions;
             stencils.extend(table);
             let parent = match next {
-                Next::Child(child) => std::mem::replace(&mut topo, *child),
+                Next::Child(child, child_features) => {
+                    features = Some(child_features);
+                    std::mem::replace(&mut topo, *child)
+                }
                 Next::Finest(faces, tags) => {
                     ((face_offsets, face_vertices), (edge_tags, vertex_tags)) = (faces, tags);
                     std::mem::take(&mut topo)
@@ -623,6 +631,34 @@ fn child_sharpness(
     for v in 0..parent.num_vertices as usize {
         child.vertex_sharpness[v] = decrement(parent.vertex_sharpness[v]);
     }
+}
+
+/// [`stencil::vertex_features`] of a `child` whose sharpness [`child_sharpness`] set, from
+/// the parent (linear in the parent's edges and vertices, not the child's): only the halves
+/// of the parent's sharp edges can be sharp, only the parent's vertices corners.
+fn child_features(parent: &Topology, child: &Topology, halves: &[[u32; 2]]) -> Vec<u8> {
+    let mut features = vec![0u8; child.num_vertices as usize];
+    for (f, &s) in features
+        .iter_mut()
+        .zip(&child.vertex_sharpness[..parent.num_vertices as usize])
+    {
+        if s != 0.0 {
+            *f = u8::MAX;
+        }
+    }
+    for (e, h) in halves.iter().enumerate() {
+        if parent.edge_sharpness[e] == 0.0 {
+            continue;
+        }
+        for &half in h {
+            if child.edge_sharpness[half as usize] != 0.0 {
+                for &v in &child.edge_vertices[half as usize] {
+                    features[v as usize] = features[v as usize].saturating_add(1);
+                }
+            }
+        }
+    }
+    features
 }
 
 /// Tags of the level refined from `parent`: the halves of its sharp interior edges (child

@@ -96,6 +96,7 @@ pub fn profile_subdivide(
                     rules: prepared.rules.as_ref(),
                     creasing: opts.creasing,
                     positions: &p,
+                    features: None,
                 };
                 p = stencil::level_apply(topo, &ctx, &p);
             }

@@ -207,6 +207,29 @@ pub struct LevelContext<'a> {
     pub creasing: Creasing,
     /// Parent positions (for sector angles of Biermann et al.'s corner rule).
     pub positions: &'a [DVec3],
+    /// The parent's [`vertex_features`] if the caller has them (the refiner derives them
+    /// with the child topology, off the critical path), else `None` (computed here). Must
+    /// equal `vertex_features(topo)`.
+    pub features: Option<&'a [u8]>,
+}
+
+/// Per vertex of `topo`: 255 if the vertex has nonzero corner sharpness, else the number of
+/// incident edges with nonzero sharpness (saturating at 255); 0 means the vertex is smooth
+/// (no sector and no crease rule needed).
+pub fn vertex_features(topo: &Topology) -> Vec<u8> {
+    let mut features: Vec<u8> = topo
+        .vertex_sharpness
+        .iter()
+        .map(|&s| if s != 0.0 { u8::MAX } else { 0 })
+        .collect();
+    for (ev, &s) in topo.edge_vertices.iter().zip(&topo.edge_sharpness) {
+        if s != 0.0 {
+            for &v in ev {
+                features[v as usize] = features[v as usize].saturating_add(1);
+            }
+        }
+    }
+    features
 }
 
 /// The sector of end `v` of edge `e` (faces joined through smooth edges), for Biermann et
@@ -457,9 +480,8 @@ struct Level<'a> {
     quads: Vec<u32>,
     needs_sectors: bool,
     needs_rings: bool,
-    /// Per vertex: the number of incident edges with nonzero sharpness (saturating), or 255
-    /// if the vertex has nonzero corner sharpness; 0 means the vertex is smooth.
-    features: Vec<u8>,
+    /// [`vertex_features`] of `topo`.
+    features: std::borrow::Cow<'a, [u8]>,
     /// `topo` has its vertex-face table (else it is a lean level: see
     /// [`Topology::from_edges_counted`]).
     vertex_faces: bool,
@@ -482,18 +504,16 @@ impl<'a> Level<'a> {
         } else {
             Vec::new()
         };
-        let mut features: Vec<u8> = topo
-            .vertex_sharpness
-            .iter()
-            .map(|&s| if s != 0.0 { u8::MAX } else { 0 })
-            .collect();
-        for (ev, &s) in topo.edge_vertices.iter().zip(&topo.edge_sharpness) {
-            if s != 0.0 {
-                for &v in ev {
-                    features[v as usize] = features[v as usize].saturating_add(1);
-                }
+        let features = match ctx.features {
+            Some(f) => {
+                debug_assert!(
+                    f == vertex_features(topo),
+                    "features given for another level"
+                );
+                std::borrow::Cow::Borrowed(f)
             }
-        }
+            None => std::borrow::Cow::Owned(vertex_features(topo)),
+        };
         let cache = MaskCache::new(ctx.rules);
         Level {
             topo,
