@@ -572,12 +572,18 @@ fn run_bspline(h: &Hierarchy, degree: Degree, runs: usize) -> Result<Run> {
 fn run_bspline_int(h: &Hierarchy, degree: Degree, runs: usize) -> Result<Run> {
     let w = BSplineWavelet::new(degree);
     let topo = &h.topologies;
+    let coarse = &topo[..h.levels()];
+    // Timed through the whole-hierarchy transforms, as the codec calls them (each level
+    // then knows which of its inputs the previous level left small, see `analyze_int`).
     run_int(
         h,
         runs,
         0.0,
         |j, d| w.analyze_level_int(&topo[j], d),
         |j, d| w.synthesize_level_int(&topo[j], d),
+        Some((&|d| w.analyze_int(coarse, d), &|d| {
+            w.synthesize_int(coarse, d)
+        })),
     )
 }
 
@@ -606,17 +612,26 @@ fn run_triangle_int(h: &Hierarchy, kind: WaveletKind, runs: usize) -> Result<Run
             w.inverse_level(j, d);
             Ok(())
         },
+        None,
     )
 }
 
+/// The whole-hierarchy analysis and synthesis of an integer transform.
+type IntWhole<'a> = (
+    &'a dyn Fn(&mut [[i64; 3]]) -> Result<()>,
+    &'a dyn Fn(&mut [[i64; 3]]) -> Result<()>,
+);
+
 /// An integer transform given by its level steps, on the positions quantized into
-/// `[0, 2^QUANT_BITS)`.
+/// `[0, 2^QUANT_BITS)`; timed through `whole` if given (the same results as the level steps
+/// in turn), else through the level steps.
 fn run_int(
     h: &Hierarchy,
     runs: usize,
     plan_ms: f64,
     analyze: impl Fn(usize, &mut [[i64; 3]]) -> Result<()>,
     synthesize: impl Fn(usize, &mut [[i64; 3]]) -> Result<()>,
+    whole: Option<IntWhole>,
 ) -> Result<Run> {
     let l = h.levels();
     let sizes: Vec<usize> = (0..=l).map(|j| h.num_vertices(j)).collect();
@@ -659,17 +674,21 @@ fn run_int(
     for j in 0..l {
         synthesize(j, &mut data[..sizes[j + 1]])?;
     }
-    let timing = time_in_place(
-        &quant,
-        runs,
-        plan_ms,
-        |d| {
-            (0..l)
-                .rev()
-                .try_for_each(|j| analyze(j, &mut d[..sizes[j + 1]]))
-        },
-        |d| (0..l).try_for_each(|j| synthesize(j, &mut d[..sizes[j + 1]])),
-    )?;
+    let timing = match whole {
+        // The same results as the level steps (tested with the transforms).
+        Some((forward, inverse)) => time_in_place(&quant, runs, plan_ms, forward, inverse)?,
+        None => time_in_place(
+            &quant,
+            runs,
+            plan_ms,
+            |d| {
+                (0..l)
+                    .rev()
+                    .try_for_each(|j| analyze(j, &mut d[..sizes[j + 1]]))
+            },
+            |d| (0..l).try_for_each(|j| synthesize(j, &mut d[..sizes[j + 1]])),
+        )?,
+    };
     let mut approximations = Vec::with_capacity(l + 1);
     for (j, low) in lowpass.iter().enumerate() {
         let mut a = low.clone();
