@@ -708,6 +708,15 @@ impl<'a> Level<'a> {
     }
 }
 
+/// The end of edge `e` other than `v`, which must be one of its ends (as
+/// [`Topology::other_vertex`], without a branch: the fast paths' ring edges are unpredictable).
+#[inline(always)]
+fn other_end(topo: &Topology, e: usize, v: u32) -> u32 {
+    let [a, b] = topo.edge_vertices[e];
+    debug_assert!(a == v || b == v, "vertex {v} is not an end of edge {e}");
+    a ^ b ^ v
+}
+
 impl Level<'_> {
     /// Child `j`'s value by a [`Fast`] recipe, bit-identical to evaluating
     /// [`Level::stencil`]; `None` where no recipe applies.
@@ -740,7 +749,7 @@ impl Level<'_> {
                 }
                 for (&e, &w) in edges.iter().zip(we) {
                     if w != 0.0 {
-                        let r = topo.other_vertex(e as usize, v as u32);
+                        let r = other_end(topo, e as usize, v as u32);
                         acc.add_scaled(&src[r as usize], w);
                     }
                 }
@@ -757,7 +766,7 @@ impl Level<'_> {
                 }
                 acc.add_scaled(&src[v], wv);
                 for &e in edges {
-                    let r = topo.other_vertex(e as usize, v as u32);
+                    let r = other_end(topo, e as usize, v as u32);
                     acc.add_scaled(&src[r as usize], wr);
                 }
                 return Some(acc);
@@ -771,7 +780,7 @@ impl Level<'_> {
                 let faces = &topo.vertex_faces[fa..fb];
                 let corners = &topo.vertex_face_corners[fa..fb];
                 let ring: [u32; 4] =
-                    std::array::from_fn(|i| topo.other_vertex(edges[i] as usize, v as u32));
+                    std::array::from_fn(|i| other_end(topo, edges[i] as usize, v as u32));
                 let diag: [u32; 4] = std::array::from_fn(|i| {
                     topo.face_vertices[4 * faces[i] as usize + ((corners[i] as usize + 2) & 3)]
                 });
@@ -799,7 +808,7 @@ impl Level<'_> {
             // The diagonal corner of each quad, which must be new to the stencil.
             let mut ring = [0u32; CACHED_VALENCE];
             for (r, &e) in ring.iter_mut().zip(edges) {
-                *r = topo.other_vertex(e as usize, v as u32);
+                *r = other_end(topo, e as usize, v as u32);
             }
             let ring = &ring[..n];
             let mut diag = [0u32; CACHED_VALENCE];
@@ -886,20 +895,25 @@ impl Level<'_> {
                     if w0 == 0.0 {
                         return Some(acc);
                     }
-                    // Each face's two corners off the edge, in face order.
-                    let others = |f: usize| {
-                        let fv = &topo.face_vertices[4 * f..4 * f + 4];
-                        let mut o = [0u32; 2];
-                        let mut k = 0;
-                        for &x in fv {
-                            if x != a && x != b && k < 2 {
-                                o[k] = x;
-                                k += 1;
-                            }
-                        }
-                        o
+                    // Each face's two corners off the edge, in face order, without branches:
+                    // the edge's two corners are adjacent, so the 4-bit mask of the corners
+                    // that are `a` or `b` names the pair (any other mask: not a quad of the
+                    // edge, the general path).
+                    const PAIRS: [Option<[usize; 2]>; 16] = {
+                        let mut t = [None; 16];
+                        t[0b0011] = Some([2, 3]);
+                        t[0b0110] = Some([0, 3]);
+                        t[0b1100] = Some([0, 1]);
+                        t[0b1001] = Some([1, 2]);
+                        t
                     };
-                    let (x, y) = (others(f0), others(f1));
+                    let others = |f: usize| -> Option<[u32; 2]> {
+                        let fv = &topo.face_vertices[4 * f..4 * f + 4];
+                        let on = |k: usize| usize::from((fv[k] == a) | (fv[k] == b)) << k;
+                        let [i, j] = PAIRS[on(0) | on(1) | on(2) | on(3)]?;
+                        Some([fv[i], fv[j]])
+                    };
+                    let (x, y) = (others(f0)?, others(f1)?);
                     if x.contains(&y[0]) || x.contains(&y[1]) {
                         return None;
                     }
