@@ -197,22 +197,39 @@ pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
     let ne = parent.num_edges();
     let nf = parent.num_faces();
     let mut face_edges = vec![0u32; face_vertices.len()];
-    let mut edge_vertices: Vec<[u32; 2]> = Vec::with_capacity(face_vertices.len() / 2 + 2);
+    // Every parent edge has two halves, and every split makes one interior edge per parent
+    // corner (a triangle's three inner edges, an n-gon's n spokes): the exact count.
+    let count = 2 * ne + parent.face_vertices.len();
+    let mut edge_store: Vec<[u32; 2]> = Vec::with_capacity(count + 1);
     let mut halves = vec![[u32::MAX; 2]; ne];
+    // The child edges in a buffer of the exact size plus one slot, written without branches
+    // (whether a half is new follows the mesh, not a pattern a branch predictor learns): each
+    // candidate is written at `edges.len`, which then advances only for a new edge, so every
+    // slot below `len` holds an edge (and an out-of-range slot is a bounds-check panic).
+    struct Edges<'a> {
+        slots: &'a mut [std::mem::MaybeUninit<[u32; 2]>],
+        len: usize,
+    }
+    let mut edges = Edges {
+        slots: edge_store.spare_capacity_mut(),
+        len: 0,
+    };
     // The child half of parent edge `e` at its end `w`, created on first sight with the given
     // direction.
-    let mut half = |edge_vertices: &mut Vec<[u32; 2]>, e: u32, w: u32, dir: [u32; 2]| -> u32 {
+    let mut half = |edges: &mut Edges, e: u32, w: u32, dir: [u32; 2]| -> u32 {
         let end = usize::from(parent.edge_vertices[e as usize][0] != w);
         let h = &mut halves[e as usize][end];
-        if *h == u32::MAX {
-            *h = edge_vertices.len() as u32;
-            edge_vertices.push(dir);
-        }
-        *h
+        let fresh = *h == u32::MAX;
+        edges.slots[edges.len].write(dir);
+        let id = if fresh { edges.len as u32 } else { *h };
+        *h = id;
+        edges.len += usize::from(fresh);
+        id
     };
-    let new_edge = |edge_vertices: &mut Vec<[u32; 2]>, dir: [u32; 2]| -> u32 {
-        edge_vertices.push(dir);
-        (edge_vertices.len() - 1) as u32
+    let new_edge = |edges: &mut Edges, dir: [u32; 2]| -> u32 {
+        edges.slots[edges.len].write(dir);
+        edges.len += 1;
+        (edges.len - 1) as u32
     };
     match split {
         Split::Triangles => {
@@ -222,15 +239,15 @@ pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
                 let m = [nv + e[0], nv + e[1], nv + e[2]];
                 let c = 12 * f;
                 // Child 4f: (v0 m0 m2); 4f+1: (v1 m1 m0); 4f+2: (v2 m2 m1); 4f+3: (m0 m1 m2).
-                let h00 = half(&mut edge_vertices, e[0], v[0], [v[0], m[0]]);
-                let ia = new_edge(&mut edge_vertices, [m[0], m[2]]);
-                let h20 = half(&mut edge_vertices, e[2], v[0], [m[2], v[0]]);
-                let h11 = half(&mut edge_vertices, e[1], v[1], [v[1], m[1]]);
-                let ib = new_edge(&mut edge_vertices, [m[1], m[0]]);
-                let h01 = half(&mut edge_vertices, e[0], v[1], [m[0], v[1]]);
-                let h22 = half(&mut edge_vertices, e[2], v[2], [v[2], m[2]]);
-                let ic = new_edge(&mut edge_vertices, [m[2], m[1]]);
-                let h12 = half(&mut edge_vertices, e[1], v[2], [m[1], v[2]]);
+                let h00 = half(&mut edges, e[0], v[0], [v[0], m[0]]);
+                let ia = new_edge(&mut edges, [m[0], m[2]]);
+                let h20 = half(&mut edges, e[2], v[0], [m[2], v[0]]);
+                let h11 = half(&mut edges, e[1], v[1], [v[1], m[1]]);
+                let ib = new_edge(&mut edges, [m[1], m[0]]);
+                let h01 = half(&mut edges, e[0], v[1], [m[0], v[1]]);
+                let h22 = half(&mut edges, e[2], v[2], [v[2], m[2]]);
+                let ic = new_edge(&mut edges, [m[2], m[1]]);
+                let h12 = half(&mut edges, e[1], v[2], [m[1], v[2]]);
                 face_edges[c..c + 12]
                     .copy_from_slice(&[h00, ia, h20, h11, ib, h01, h22, ic, h12, ib, ic, ia]);
             }
@@ -249,21 +266,21 @@ pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
                     let ip = if i == 0 { n - 1 } else { i - 1 };
                     let (mi, mp) = (nv + e[i], nv + e[ip]);
                     // Child i: (v_i, m_i, c, m_{i-1}).
-                    let h_out = half(&mut edge_vertices, e[i], v[i], [v[i], mi]);
+                    let h_out = half(&mut edges, e[i], v[i], [v[i], mi]);
                     let int_i = if i == n - 1 {
                         first_interior
                     } else {
-                        new_edge(&mut edge_vertices, [mi, cpt])
+                        new_edge(&mut edges, [mi, cpt])
                     };
                     let int_p = if i == 0 {
                         // Interior edge n-1 first appears here, traversed c -> m_{n-1}.
-                        let id = new_edge(&mut edge_vertices, [cpt, mp]);
+                        let id = new_edge(&mut edges, [cpt, mp]);
                         first_interior = id;
                         id
                     } else {
                         prev_interior
                     };
-                    let h_in = half(&mut edge_vertices, e[ip], v[i], [mp, v[i]]);
+                    let h_in = half(&mut edges, e[ip], v[i], [mp, v[i]]);
                     let c = base + 4 * i;
                     face_edges[c..c + 4].copy_from_slice(&[h_out, int_i, int_p, h_in]);
                     prev_interior = int_i;
@@ -281,15 +298,15 @@ pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
                 if v.len() == 3 {
                     // As Split::Triangles.
                     let m = [nv + e[0], nv + e[1], nv + e[2]];
-                    let h00 = half(&mut edge_vertices, e[0], v[0], [v[0], m[0]]);
-                    let ia = new_edge(&mut edge_vertices, [m[0], m[2]]);
-                    let h20 = half(&mut edge_vertices, e[2], v[0], [m[2], v[0]]);
-                    let h11 = half(&mut edge_vertices, e[1], v[1], [v[1], m[1]]);
-                    let ib = new_edge(&mut edge_vertices, [m[1], m[0]]);
-                    let h01 = half(&mut edge_vertices, e[0], v[1], [m[0], v[1]]);
-                    let h22 = half(&mut edge_vertices, e[2], v[2], [v[2], m[2]]);
-                    let ic = new_edge(&mut edge_vertices, [m[2], m[1]]);
-                    let h12 = half(&mut edge_vertices, e[1], v[2], [m[1], v[2]]);
+                    let h00 = half(&mut edges, e[0], v[0], [v[0], m[0]]);
+                    let ia = new_edge(&mut edges, [m[0], m[2]]);
+                    let h20 = half(&mut edges, e[2], v[0], [m[2], v[0]]);
+                    let h11 = half(&mut edges, e[1], v[1], [v[1], m[1]]);
+                    let ib = new_edge(&mut edges, [m[1], m[0]]);
+                    let h01 = half(&mut edges, e[0], v[1], [m[0], v[1]]);
+                    let h22 = half(&mut edges, e[2], v[2], [v[2], m[2]]);
+                    let ic = new_edge(&mut edges, [m[2], m[1]]);
+                    let h12 = half(&mut edges, e[1], v[2], [m[1], v[2]]);
                     face_edges[base..base + 12]
                         .copy_from_slice(&[h00, ia, h20, h11, ib, h01, h22, ic, h12, ib, ic, ia]);
                 } else {
@@ -302,20 +319,20 @@ pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
                     for i in 0..n {
                         let ip = if i == 0 { n - 1 } else { i - 1 };
                         let (mi, mp) = (nv + e[i], nv + e[ip]);
-                        let h_out = half(&mut edge_vertices, e[i], v[i], [v[i], mi]);
+                        let h_out = half(&mut edges, e[i], v[i], [v[i], mi]);
                         let int_i = if i == n - 1 {
                             first_interior
                         } else {
-                            new_edge(&mut edge_vertices, [mi, cpt])
+                            new_edge(&mut edges, [mi, cpt])
                         };
                         let int_p = if i == 0 {
-                            let id = new_edge(&mut edge_vertices, [cpt, mp]);
+                            let id = new_edge(&mut edges, [cpt, mp]);
                             first_interior = id;
                             id
                         } else {
                             prev_interior
                         };
-                        let h_in = half(&mut edge_vertices, e[ip], v[i], [mp, v[i]]);
+                        let h_in = half(&mut edges, e[ip], v[i], [mp, v[i]]);
                         let c = base + 4 * i;
                         face_edges[c..c + 4].copy_from_slice(&[h_out, int_i, int_p, h_in]);
                         prev_interior = int_i;
@@ -324,11 +341,16 @@ pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
             }
         }
     }
+    let len = edges.len;
+    debug_assert_eq!(len, count, "child edge count");
+    // SAFETY: slots `0..len` were written (slot `k` when `len` was `k`, before it advanced)
+    // and lie within the capacity (`slots` is the spare capacity of the empty vector).
+    unsafe { edge_store.set_len(len) };
     ChildEdges {
         face_offsets,
         face_vertices,
         face_edges,
-        edge_vertices,
+        edge_vertices: edge_store,
         edge_halves: halves,
     }
 }
