@@ -407,47 +407,55 @@ fn child_offsets(parent: &Topology, split: Split, c: &ChildEdges) -> Option<[Vec
     let nv = parent.num_vertices as usize;
     let ne = parent.num_edges();
     let n_child = child_vertex_count(parent, split);
-    // A leading 0, then the offsets.
-    let prefix = |n: usize, count: &mut dyn FnMut(usize) -> u32| {
+    // The three tables are independent: built in parallel, each a prefix sum of counts
+    // (a leading 0, then the offsets).
+    fn prefix(n: usize, count: impl Fn(usize) -> u32) -> Vec<u32> {
         let mut off = Vec::with_capacity(n + 2);
         off.push(0u32);
         off.push(0u32);
         let mut acc = 0u32;
-        for k in 0..n {
+        off.extend((0..n).map(|k| {
             acc += count(k);
-            off.push(acc);
-        }
+            acc
+        }));
         off
-    };
+    }
     let edge_faces = |e: usize| parent.edge_face_offsets[e + 1] - parent.edge_face_offsets[e];
-    let vf = prefix(n_child, &mut |v| {
-        if v < nv {
-            parent.vertex_face_offsets[v + 1] - parent.vertex_face_offsets[v]
-        } else if v < nv + ne {
-            faces_per_face * edge_faces(v - nv)
-        } else {
-            parent.face_vertices(v - nv - ne).len() as u32
-        }
-    });
-    let ve = prefix(n_child, &mut |v| {
-        if v < nv {
-            parent.vertex_edge_offsets[v + 1] - parent.vertex_edge_offsets[v]
-        } else if v < nv + ne {
-            2 + edges_per_face * edge_faces(v - nv)
-        } else {
-            parent.face_vertices(v - nv - ne).len() as u32
-        }
-    });
-    let mut counts = vec![2u8; c.edge_vertices.len()];
-    for (e, h) in c.edge_halves.iter().enumerate() {
-        let n = edge_faces(e);
-        if n != 2 {
-            for &x in h {
-                counts[x as usize] = n.min(255) as u8;
+    let vf = || {
+        prefix(n_child, |v| {
+            if v < nv {
+                parent.vertex_face_offsets[v + 1] - parent.vertex_face_offsets[v]
+            } else if v < nv + ne {
+                faces_per_face * edge_faces(v - nv)
+            } else {
+                parent.face_vertices(v - nv - ne).len() as u32
+            }
+        })
+    };
+    let ve = || {
+        prefix(n_child, |v| {
+            if v < nv {
+                parent.vertex_edge_offsets[v + 1] - parent.vertex_edge_offsets[v]
+            } else if v < nv + ne {
+                2 + edges_per_face * edge_faces(v - nv)
+            } else {
+                parent.face_vertices(v - nv - ne).len() as u32
+            }
+        })
+    };
+    let ef = || {
+        let mut counts = vec![2u8; c.edge_vertices.len()];
+        for (e, h) in c.edge_halves.iter().enumerate() {
+            let n = edge_faces(e);
+            if n != 2 {
+                for &x in h {
+                    counts[x as usize] = n.min(255) as u8;
+                }
             }
         }
-    }
-    let ef = prefix(counts.len(), &mut |e| counts[e] as u32);
+        prefix(counts.len(), |e| counts[e] as u32)
+    };
+    let (vf, (ve, ef)) = rayon::join(vf, || rayon::join(ve, ef));
     Some([vf, ve, ef])
 }
 
