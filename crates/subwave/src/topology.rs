@@ -59,6 +59,17 @@ pub enum VertexTag {
     Corner,
 }
 
+/// How [`Topology::from_edges_counted`] obtains the vertex-face relation.
+pub(crate) enum VertexFaces {
+    /// A counting sort of the corners by vertex (faces in scan order).
+    Sort,
+    /// Only the offsets: a lean level (see [`Topology::from_edges_counted`]).
+    Lean,
+    /// Faces and corners built by the caller, exactly as [`VertexFaces::Sort`] would order
+    /// them, laid out by the vertex-face offsets the caller also gives (else sorted).
+    Given(Vec<u32>, Vec<u16>),
+}
+
 /// Flat topology tables of a polygon mesh. See the module documentation for the conventions.
 #[derive(Clone, Debug, Default)]
 pub struct Topology {
@@ -222,7 +233,7 @@ impl Topology {
             edge_vertices,
             order_rings,
             None,
-            true,
+            VertexFaces::Sort,
         )
     }
 
@@ -232,14 +243,15 @@ impl Topology {
     /// followed by the `n + 1` offsets (the layout of [`Topology::counting_offsets`]). The
     /// tables are those of [`Topology::from_edges`] when the offsets are right.
     ///
-    /// Without `vertex_faces`, the vertex-face relation keeps only its offsets (the face count
+    /// With [`VertexFaces::Lean`], the vertex-face relation keeps only its offsets (the face count
     /// of each vertex): `vertex_faces` and `vertex_face_corners` stay empty, so that
     /// [`Topology::has_vertex_faces`] is false and [`Topology::vertex_faces`] panics, and a
     /// consumer that needs a vertex's faces gathers them with
     /// [`Topology::vertex_faces_from_edges`]. The refiner builds such lean levels when it
     /// drops them after use and its fast paths read only the counts (a vertex-face scatter
-    /// is the largest of the three counting sorts). Panics if `order_rings` is asked without
-    /// `vertex_faces`.
+    /// is the largest of the three counting sorts). Panics if `order_rings` is asked of a lean
+    /// level. With [`VertexFaces::Given`], the caller's table is taken as it is (a refiner
+    /// builds it in parallel from the parent); with [`VertexFaces::Sort`] it is sorted here.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn from_edges_counted(
         nv: usize,
@@ -249,10 +261,10 @@ impl Topology {
         edge_vertices: Vec<[u32; 2]>,
         order_rings: bool,
         offsets: Option<[Vec<u32>; 3]>,
-        vertex_faces: bool,
+        vertex_faces: VertexFaces,
     ) -> Self {
         assert!(
-            vertex_faces || !order_rings,
+            !matches!(vertex_faces, VertexFaces::Lean) || !order_rings,
             "ordering rings needs the vertex-face table"
         );
         let ne = edge_vertices.len();
@@ -266,6 +278,15 @@ impl Topology {
                 && fits(ef, ne, face_edges.len())
         });
         let [vf, ve, ef] = offsets.map_or([None, None, None], |o| o.map(Some));
+        // A given table must fit the corners and come with its offsets.
+        let vertex_faces = match vertex_faces {
+            VertexFaces::Given(f, c)
+                if vf.is_none() || f.len() != face_vertices.len() || c.len() != f.len() =>
+            {
+                VertexFaces::Sort
+            }
+            x => x,
+        };
         // The three relations are independent counting sorts: build them in parallel.
         let (
             (edge_face_offsets, edge_faces),
@@ -278,17 +299,25 @@ impl Topology {
             || {
                 rayon::join(
                     || {
-                        if vertex_faces {
-                            Self::vertex_face_table(nv, &face_offsets, &face_vertices, vf)
-                        } else {
-                            let mut off = vf.unwrap_or_else(|| {
-                                Self::counting_offsets(nv, face_vertices.iter().copied())
-                            });
-                            // The counting layout's leading 0 dropped: the start of each
-                            // vertex's faces, then the total.
-                            off.remove(0);
-                            (off, Vec::new(), Vec::new())
-                        }
+                        let (faces, corners) = match vertex_faces {
+                            VertexFaces::Sort => {
+                                return Self::vertex_face_table(
+                                    nv,
+                                    &face_offsets,
+                                    &face_vertices,
+                                    vf,
+                                )
+                            }
+                            VertexFaces::Lean => (Vec::new(), Vec::new()),
+                            VertexFaces::Given(f, c) => (f, c),
+                        };
+                        let mut off = vf.unwrap_or_else(|| {
+                            Self::counting_offsets(nv, face_vertices.iter().copied())
+                        });
+                        // The counting layout's leading 0 dropped: the start of each
+                        // vertex's faces, then the total.
+                        off.remove(0);
+                        (off, faces, corners)
                     },
                     || Self::vertex_edge_table(nv, &edge_vertices, ve),
                 )

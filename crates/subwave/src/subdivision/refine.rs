@@ -33,7 +33,7 @@
 
 use rayon::prelude::*;
 
-use crate::topology::Topology;
+use crate::topology::{Topology, VertexFaces};
 
 /// How a scheme splits faces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -376,6 +376,14 @@ pub(crate) fn refine_topology_with(
     let nv = child_vertex_count(parent, split);
     let c = child_edges(parent, split);
     let offsets = child_offsets(parent, split, &c);
+    let table = match (&offsets, vertex_faces) {
+        (_, false) => VertexFaces::Lean,
+        (Some([vf, _, _]), true) if split == Split::Polygons => {
+            let (faces, corners) = polygon_child_vertex_faces(parent, vf);
+            VertexFaces::Given(faces, corners)
+        }
+        _ => VertexFaces::Sort,
+    };
     let topo = Topology::from_edges_counted(
         nv,
         c.face_offsets,
@@ -384,9 +392,86 @@ pub(crate) fn refine_topology_with(
         c.edge_vertices,
         order_rings,
         offsets,
-        vertex_faces,
+        table,
     );
     (topo, c.edge_halves)
+}
+
+/// The child level's vertex faces and corners of a polygon split, in parallel chunks of child
+/// vertices from the parent's tables (each child vertex writes its own range of the layout
+/// `vf` of [`child_offsets`]), in the scan order of a counting sort: ascending child faces.
+/// By the ordering contract, child `offset_f + i` of parent face `f` is `(v_i, m_i, c,
+/// m_{i-1})`: a parent vertex is corner 0 of one child per parent face; the edge point of
+/// the edge at corner `i` of `f` is corner 1 of child `i` and corner 3 of child `i + 1`
+/// (mod n); a face point is corner 2 of each of its face's children.
+fn polygon_child_vertex_faces(parent: &Topology, vf: &[u32]) -> (Vec<u32>, Vec<u16>) {
+    /// Child vertices per parallel work item.
+    const CHUNK: usize = 4096;
+    let nv = parent.num_vertices as usize;
+    let ne = parent.num_edges();
+    let n_child = vf.len() - 2;
+    // Child vertex k's faces start at vf[k + 1].
+    let total = vf[n_child + 1] as usize;
+    let mut faces = vec![0u32; total];
+    let mut corners = vec![0u16; total];
+    let mut jobs = Vec::with_capacity(n_child.div_ceil(CHUNK));
+    let (mut fr, mut cr) = (&mut faces[..], &mut corners[..]);
+    for k0 in (0..n_child).step_by(CHUNK) {
+        let k1 = (k0 + CHUNK).min(n_child);
+        let len = (vf[k1 + 1] - vf[k0 + 1]) as usize;
+        let (f, f_rest) = std::mem::take(&mut fr).split_at_mut(len);
+        let (c, c_rest) = std::mem::take(&mut cr).split_at_mut(len);
+        (fr, cr) = (f_rest, c_rest);
+        jobs.push((k0..k1, f, c));
+    }
+    jobs.into_par_iter().for_each(|(range, fs, cs)| {
+        let mut at = 0;
+        macro_rules! put {
+            ($f:expr, $c:expr) => {{
+                fs[at] = $f;
+                cs[at] = $c;
+                at += 1;
+            }};
+        }
+        for k in range {
+            if k < nv {
+                let start = at;
+                for (&f, &i) in parent
+                    .vertex_faces(k)
+                    .iter()
+                    .zip(parent.vertex_face_corners(k))
+                {
+                    put!(parent.face_offsets[f as usize] + u32::from(i), 0);
+                }
+                // Ordered 1-rings (a level-0 parent) are not in face order.
+                if parent.rings_ordered {
+                    fs[start..at].sort_unstable();
+                }
+            } else if k < nv + ne {
+                let e = (k - nv) as u32;
+                for &f in parent.edge_faces(k - nv) {
+                    let o = parent.face_offsets[f as usize];
+                    let fe = parent.face_edges(f as usize);
+                    let i = fe.iter().position(|&x| x == e).unwrap_or(0);
+                    if i + 1 < fe.len() {
+                        put!(o + i as u32, 1);
+                        put!(o + i as u32 + 1, 3);
+                    } else {
+                        put!(o, 3);
+                        put!(o + i as u32, 1);
+                    }
+                }
+            } else {
+                let f = k - nv - ne;
+                let o = parent.face_offsets[f];
+                for i in 0..parent.face_vertices(f).len() as u32 {
+                    put!(o + i, 2);
+                }
+            }
+        }
+        debug_assert_eq!(at, fs.len(), "child vertex-face counts");
+    });
+    (faces, corners)
 }
 
 /// The child level's vertex-face, vertex-edge and edge-face offsets, from the parent's counts
