@@ -328,20 +328,31 @@ impl Topology {
             vec![VertexKind::Isolated; nv]
         } else {
             // Every vertex with an edge is interior, unless an incident edge has one face.
-            let mut kinds: Vec<VertexKind> = vertex_edge_offsets
-                .windows(2)
-                .map(|w| {
-                    if w[1] > w[0] {
+            // Both scans in parallel chunks (refined levels have millions of elements, on the
+            // refiner's critical path); boundary edges are few, marked from their list.
+            const CHUNK: usize = 1 << 16;
+            let mut kinds: Vec<VertexKind> = crate::par::par_vec(
+                nv,
+                CHUNK,
+                || (),
+                |_, v| {
+                    if vertex_edge_offsets[v + 1] > vertex_edge_offsets[v] {
                         VertexKind::Interior
                     } else {
                         VertexKind::Isolated
                     }
-                })
+                },
+            );
+            let boundary: Vec<usize> = edge_face_offsets
+                .par_windows(2)
+                .with_min_len(CHUNK)
+                .enumerate()
+                .filter(|(_, w)| w[1] - w[0] == 1)
+                .map(|(e, _)| e)
                 .collect();
-            for (ev, w) in edge_vertices.iter().zip(edge_face_offsets.windows(2)) {
-                if w[1] - w[0] == 1 {
-                    kinds[ev[0] as usize] = VertexKind::Boundary;
-                    kinds[ev[1] as usize] = VertexKind::Boundary;
+            for e in boundary {
+                for &v in &edge_vertices[e] {
+                    kinds[v as usize] = VertexKind::Boundary;
                 }
             }
             kinds
