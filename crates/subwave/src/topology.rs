@@ -243,13 +243,13 @@ impl Topology {
     /// followed by the `n + 1` offsets (the layout of [`Topology::counting_offsets`]). The
     /// tables are those of [`Topology::from_edges`] when the offsets are right.
     ///
-    /// With [`VertexFaces::Lean`], the vertex-face relation keeps only its offsets (the face count
-    /// of each vertex): `vertex_faces` and `vertex_face_corners` stay empty, so that
+    /// With [`VertexFaces::Lean`], the vertex-face relation keeps only its offsets (the face
+    /// count of each vertex): `vertex_faces` and `vertex_face_corners` stay empty, so that
     /// [`Topology::has_vertex_faces`] is false and [`Topology::vertex_faces`] panics, and a
     /// consumer that needs a vertex's faces gathers them with
     /// [`Topology::vertex_faces_from_edges`]. The refiner builds such lean levels when it
-    /// drops them after use and its fast paths read only the counts (a vertex-face scatter
-    /// is the largest of the three counting sorts). Panics if `order_rings` is asked of a lean
+    /// drops them after use and its fast paths read only the counts (a vertex-face scatter is
+    /// the largest of the three counting sorts). Panics if `order_rings` is asked of a lean
     /// level. With [`VertexFaces::Given`], the caller's table is taken as it is (a refiner
     /// builds it in parallel from the parent); with [`VertexFaces::Sort`] it is sorted here.
     #[allow(clippy::too_many_arguments)]
@@ -606,9 +606,9 @@ impl Topology {
             [self.vertex_face_offsets[v] as usize..self.vertex_face_offsets[v + 1] as usize]
     }
 
-    /// False on a lean refined level (see [`Topology::from_edges_counted`]) whose
-    /// vertex-face relation holds only its offsets; true on every topology the library
-    /// hands out.
+    /// False on a lean refined level, whose vertex-face relation holds only its offsets (the
+    /// refiner builds such levels for its own use and drops them); true on every topology
+    /// the library hands out.
     #[inline]
     pub fn has_vertex_faces(&self) -> bool {
         self.vertex_faces.len() == self.face_vertices.len()
