@@ -186,6 +186,90 @@ pub fn child_faces(parent: &Topology, split: Split) -> (Vec<u32>, Vec<u32>) {
     }
 }
 
+/// The child edges of a split as they are numbered: a buffer of the exact count plus one
+/// slot, written without branches (whether a half is new follows the mesh, not a pattern a
+/// branch predictor learns). Each candidate is written at `len`, which then advances only for
+/// a new edge, so every slot below `len` holds an edge (and an out-of-range slot is a
+/// bounds-check panic).
+struct ChildEdgeList<'a> {
+    slots: &'a mut [std::mem::MaybeUninit<[u32; 2]>],
+    len: usize,
+    /// Per parent edge, its child halves at `parent_ends[e][0]` and `[1]` (`u32::MAX` until
+    /// created).
+    halves: &'a mut [[u32; 2]],
+    parent_ends: &'a [[u32; 2]],
+}
+
+impl ChildEdgeList<'_> {
+    /// The child half of parent edge `e` at its end `w`, created on first sight with the
+    /// direction `dir`.
+    #[inline(always)]
+    fn half(&mut self, e: u32, w: u32, dir: [u32; 2]) -> u32 {
+        let end = usize::from(self.parent_ends[e as usize][0] != w);
+        let h = &mut self.halves[e as usize][end];
+        let fresh = *h == u32::MAX;
+        self.slots[self.len].write(dir);
+        let id = if fresh { self.len as u32 } else { *h };
+        *h = id;
+        self.len += usize::from(fresh);
+        id
+    }
+
+    /// A new interior edge with direction `dir`.
+    #[inline(always)]
+    fn interior(&mut self, dir: [u32; 2]) -> u32 {
+        self.slots[self.len].write(dir);
+        self.len += 1;
+        (self.len - 1) as u32
+    }
+
+    /// The edges of the four children of triangle `v` (edges `e`), in child order (Maret eq.
+    /// 5.7): child 4f (v0 m0 m2), 4f+1 (v1 m1 m0), 4f+2 (v2 m2 m1), 4f+3 (m0 m1 m2).
+    #[inline(always)]
+    fn triangle(&mut self, v: &[u32], e: &[u32], nv: u32) -> [u32; 12] {
+        let m = [nv + e[0], nv + e[1], nv + e[2]];
+        let h00 = self.half(e[0], v[0], [v[0], m[0]]);
+        let ia = self.interior([m[0], m[2]]);
+        let h20 = self.half(e[2], v[0], [m[2], v[0]]);
+        let h11 = self.half(e[1], v[1], [v[1], m[1]]);
+        let ib = self.interior([m[1], m[0]]);
+        let h01 = self.half(e[0], v[1], [m[0], v[1]]);
+        let h22 = self.half(e[2], v[2], [v[2], m[2]]);
+        let ic = self.interior([m[2], m[1]]);
+        let h12 = self.half(e[1], v[2], [m[1], v[2]]);
+        [h00, ia, h20, h11, ib, h01, h22, ic, h12, ib, ic, ia]
+    }
+
+    /// The edges of the children `(v_i, m_i, c, m_{i-1})` of polygon `v` (edges `e`) around
+    /// face point `c`, into `out` (four per child).
+    #[inline(always)]
+    fn polygon(&mut self, v: &[u32], e: &[u32], nv: u32, c: u32, out: &mut [u32]) {
+        let n = v.len();
+        let mut first_interior = 0u32;
+        let mut prev_interior = 0u32;
+        for i in 0..n {
+            let ip = if i == 0 { n - 1 } else { i - 1 };
+            let (mi, mp) = (nv + e[i], nv + e[ip]);
+            let h_out = self.half(e[i], v[i], [v[i], mi]);
+            let int_i = if i == n - 1 {
+                first_interior
+            } else {
+                self.interior([mi, c])
+            };
+            let int_p = if i == 0 {
+                // Interior edge n-1 first appears here, traversed c -> m_{n-1}.
+                first_interior = self.interior([c, mp]);
+                first_interior
+            } else {
+                prev_interior
+            };
+            let h_in = self.half(e[ip], v[i], [mp, v[i]]);
+            out[4 * i..4 * i + 4].copy_from_slice(&[h_out, int_i, int_p, h_in]);
+            prev_interior = int_i;
+        }
+    }
+}
+
 /// Child faces and edges of a split, numbered per the ordering contract.
 ///
 /// Preconditions: `parent` is a consistently oriented manifold (checked by
@@ -202,141 +286,35 @@ pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
     let count = 2 * ne + parent.face_vertices.len();
     let mut edge_store: Vec<[u32; 2]> = Vec::with_capacity(count + 1);
     let mut halves = vec![[u32::MAX; 2]; ne];
-    // The child edges in a buffer of the exact size plus one slot, written without branches
-    // (whether a half is new follows the mesh, not a pattern a branch predictor learns): each
-    // candidate is written at `edges.len`, which then advances only for a new edge, so every
-    // slot below `len` holds an edge (and an out-of-range slot is a bounds-check panic).
-    struct Edges<'a> {
-        slots: &'a mut [std::mem::MaybeUninit<[u32; 2]>],
-        len: usize,
-    }
-    let mut edges = Edges {
+    let mut edges = ChildEdgeList {
         slots: edge_store.spare_capacity_mut(),
         len: 0,
+        halves: &mut halves,
+        parent_ends: &parent.edge_vertices,
     };
-    // The child half of parent edge `e` at its end `w`, created on first sight with the given
-    // direction.
-    let mut half = |edges: &mut Edges, e: u32, w: u32, dir: [u32; 2]| -> u32 {
-        let end = usize::from(parent.edge_vertices[e as usize][0] != w);
-        let h = &mut halves[e as usize][end];
-        let fresh = *h == u32::MAX;
-        edges.slots[edges.len].write(dir);
-        let id = if fresh { edges.len as u32 } else { *h };
-        *h = id;
-        edges.len += usize::from(fresh);
-        id
-    };
-    let new_edge = |edges: &mut Edges, dir: [u32; 2]| -> u32 {
-        edges.slots[edges.len].write(dir);
-        edges.len += 1;
-        (edges.len - 1) as u32
-    };
-    match split {
-        Split::Triangles => {
-            for f in 0..nf {
-                let v = parent.face_vertices(f);
-                let e = parent.face_edges(f);
-                let m = [nv + e[0], nv + e[1], nv + e[2]];
-                let c = 12 * f;
-                // Child 4f: (v0 m0 m2); 4f+1: (v1 m1 m0); 4f+2: (v2 m2 m1); 4f+3: (m0 m1 m2).
-                let h00 = half(&mut edges, e[0], v[0], [v[0], m[0]]);
-                let ia = new_edge(&mut edges, [m[0], m[2]]);
-                let h20 = half(&mut edges, e[2], v[0], [m[2], v[0]]);
-                let h11 = half(&mut edges, e[1], v[1], [v[1], m[1]]);
-                let ib = new_edge(&mut edges, [m[1], m[0]]);
-                let h01 = half(&mut edges, e[0], v[1], [m[0], v[1]]);
-                let h22 = half(&mut edges, e[2], v[2], [v[2], m[2]]);
-                let ic = new_edge(&mut edges, [m[2], m[1]]);
-                let h12 = half(&mut edges, e[1], v[2], [m[1], v[2]]);
-                face_edges[c..c + 12]
-                    .copy_from_slice(&[h00, ia, h20, h11, ib, h01, h22, ic, h12, ib, ic, ia]);
+    let ne32 = ne as u32;
+    // Quad/triangle: the face point of the next quad.
+    let mut q = nv + ne32;
+    for f in 0..nf {
+        let v = parent.face_vertices(f);
+        let e = parent.face_edges(f);
+        match split {
+            Split::Triangles => {
+                face_edges[12 * f..12 * f + 12].copy_from_slice(&edges.triangle(v, e, nv));
             }
-        }
-        Split::Polygons => {
-            let ne32 = ne as u32;
-            for f in 0..nf {
-                let v = parent.face_vertices(f);
-                let e = parent.face_edges(f);
-                let n = v.len();
-                let cpt = nv + ne32 + f as u32;
+            Split::Polygons => {
                 let base = 4 * parent.face_offsets[f] as usize;
-                let mut first_interior = 0u32;
-                let mut prev_interior = 0u32;
-                for i in 0..n {
-                    let ip = if i == 0 { n - 1 } else { i - 1 };
-                    let (mi, mp) = (nv + e[i], nv + e[ip]);
-                    // Child i: (v_i, m_i, c, m_{i-1}).
-                    let h_out = half(&mut edges, e[i], v[i], [v[i], mi]);
-                    let int_i = if i == n - 1 {
-                        first_interior
-                    } else {
-                        new_edge(&mut edges, [mi, cpt])
-                    };
-                    let int_p = if i == 0 {
-                        // Interior edge n-1 first appears here, traversed c -> m_{n-1}.
-                        let id = new_edge(&mut edges, [cpt, mp]);
-                        first_interior = id;
-                        id
-                    } else {
-                        prev_interior
-                    };
-                    let h_in = half(&mut edges, e[ip], v[i], [mp, v[i]]);
-                    let c = base + 4 * i;
-                    face_edges[c..c + 4].copy_from_slice(&[h_out, int_i, int_p, h_in]);
-                    prev_interior = int_i;
-                }
+                let out = &mut face_edges[base..base + 4 * v.len()];
+                edges.polygon(v, e, nv, nv + ne32 + f as u32, out);
             }
-        }
-        Split::QuadTri => {
-            let ne32 = ne as u32;
-            let mut q = nv + ne32;
-            for f in 0..nf {
-                let v = parent.face_vertices(f);
-                let e = parent.face_edges(f);
+            Split::QuadTri => {
                 // Children of face f are 4f..4f+3, starting at this corner of the child list.
                 let base = face_offsets[4 * f] as usize;
                 if v.len() == 3 {
-                    // As Split::Triangles.
-                    let m = [nv + e[0], nv + e[1], nv + e[2]];
-                    let h00 = half(&mut edges, e[0], v[0], [v[0], m[0]]);
-                    let ia = new_edge(&mut edges, [m[0], m[2]]);
-                    let h20 = half(&mut edges, e[2], v[0], [m[2], v[0]]);
-                    let h11 = half(&mut edges, e[1], v[1], [v[1], m[1]]);
-                    let ib = new_edge(&mut edges, [m[1], m[0]]);
-                    let h01 = half(&mut edges, e[0], v[1], [m[0], v[1]]);
-                    let h22 = half(&mut edges, e[2], v[2], [v[2], m[2]]);
-                    let ic = new_edge(&mut edges, [m[2], m[1]]);
-                    let h12 = half(&mut edges, e[1], v[2], [m[1], v[2]]);
-                    face_edges[base..base + 12]
-                        .copy_from_slice(&[h00, ia, h20, h11, ib, h01, h22, ic, h12, ib, ic, ia]);
+                    face_edges[base..base + 12].copy_from_slice(&edges.triangle(v, e, nv));
                 } else {
-                    // As Split::Polygons, with the quad's face point q.
-                    let n = v.len();
-                    let cpt = q;
+                    edges.polygon(v, e, nv, q, &mut face_edges[base..base + 4 * v.len()]);
                     q += 1;
-                    let mut first_interior = 0u32;
-                    let mut prev_interior = 0u32;
-                    for i in 0..n {
-                        let ip = if i == 0 { n - 1 } else { i - 1 };
-                        let (mi, mp) = (nv + e[i], nv + e[ip]);
-                        let h_out = half(&mut edges, e[i], v[i], [v[i], mi]);
-                        let int_i = if i == n - 1 {
-                            first_interior
-                        } else {
-                            new_edge(&mut edges, [mi, cpt])
-                        };
-                        let int_p = if i == 0 {
-                            let id = new_edge(&mut edges, [cpt, mp]);
-                            first_interior = id;
-                            id
-                        } else {
-                            prev_interior
-                        };
-                        let h_in = half(&mut edges, e[ip], v[i], [mp, v[i]]);
-                        let c = base + 4 * i;
-                        face_edges[c..c + 4].copy_from_slice(&[h_out, int_i, int_p, h_in]);
-                        prev_interior = int_i;
-                    }
                 }
             }
         }
