@@ -161,11 +161,12 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     let stages = prepared.remeshed.as_ref().map(|r| {
         let t = &r.timings;
         format!(
-            "remesh {:.0} ms (prepare {:.0}, simplify {:.0}, parameterize {:.0}, resample {:.0}, relax {:.0}), {} {:.0} ms, distance {:.0} ms, ",
+            "remesh {:.0} ms (prepare {:.0}, simplify {:.0}, parameterize {:.0}, sampling relaxation {:.0}, resample {:.0}, relax {:.0}), {} {:.0} ms, distance {:.0} ms, ",
             t.total_ms,
             t.prepare_ms,
             t.simplify_ms,
             t.parameterize_ms,
+            t.param_relax_ms,
             t.resample_ms,
             t.relax_ms,
             // What follows the remesh: the normal re-sampling, if it ran.

@@ -5,12 +5,13 @@ use std::time::{Duration, Instant};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 /// The remesher's stages and their share of its time.
-const STAGES: [(&str, f64); 6] = [
+const STAGES: [(&str, f64); 7] = [
     ("prepare", 0.05),
-    ("simplify", 0.45),
-    ("parameterize", 0.1),
-    ("resample", 0.2),
-    ("relax", 0.15),
+    ("simplify", 0.3),
+    ("parameterize", 0.05),
+    ("sampling", 0.2),
+    ("resample", 0.1),
+    ("relax", 0.25),
     ("quality", 0.05),
 ];
 

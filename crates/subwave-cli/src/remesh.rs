@@ -54,6 +54,11 @@ pub struct RemeshArgs {
     /// Relaxation iterations on the finest level.
     #[arg(long, value_name = "N", default_value_t = 6)]
     pub relax: u32,
+    /// Steps of the coarse-to-fine relaxation of the sampling in the base domain on each
+    /// level from the third on (a third of them on levels over 65,536 faces, a sixth on the
+    /// finest, none on levels over 262,144 faces; 0: dyadic sampling).
+    #[arg(long, value_name = "N", default_value_t = 30)]
+    pub param_relax: u32,
     /// Where to write the base mesh (default: OUT with `.base` before the extension).
     #[arg(long, value_name = "PATH")]
     pub base_output: Option<PathBuf>,
@@ -101,6 +106,7 @@ fn options(args: &RemeshArgs) -> RemeshOptions {
         sharp_angle: args.sharp_angle,
         repair: args.repair,
         relax_iterations: args.relax,
+        param_relax_iterations: args.param_relax,
         method: match args.method {
             MethodArg::Auto => MethodChoice::Auto,
             MethodArg::Maps => MethodChoice::Maps,
@@ -304,6 +310,10 @@ pub fn bench(args: &BenchRemeshArgs) -> Result<()> {
             .row("prepare", format!("{:.0} ms", med_run.prepare_ms))
             .row("simplify", format!("{:.0} ms", med_run.simplify_ms))
             .row("parameterize", format!("{:.0} ms", med_run.parameterize_ms))
+            .row(
+                "sampling relaxation",
+                format!("{:.0} ms", med_run.param_relax_ms),
+            )
             .row("resample", format!("{:.0} ms", med_run.resample_ms))
             .row("relax", format!("{:.0} ms", med_run.relax_ms));
         t.write(&mut out, "  ")?;

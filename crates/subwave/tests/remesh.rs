@@ -504,3 +504,52 @@ fn fold_repair_slides_rim_vertices_along_the_boundary() {
         }
     }
 }
+
+/// A sphere with a finger: a protrusion that the base mesh cuts off, so that its image in
+/// the base domain is small and the dyadic samples undersample it.
+fn finger() -> Mesh {
+    let mut m = subwave::generate::icosphere(4);
+    for p in &mut m.positions {
+        if p.z > 0.6 {
+            let t = (p.z - 0.6) / 0.4;
+            p.z += 4.0 * t * t;
+            p.x *= 1.0 - 0.7 * t;
+            p.y *= 1.0 - 0.7 * t;
+        }
+    }
+    m
+}
+
+#[test]
+fn relaxed_sampling_spreads_the_samples_evenly() {
+    let input = finger();
+    let run = |n: u32| {
+        let o = RemeshOptions {
+            param_relax_iterations: n,
+            ..opts(4, 60)
+        };
+        let r = remesh(&input, &o).unwrap();
+        let psnr = check(&input, &r, 4);
+        // Spread of the face areas: standard deviation over mean.
+        let p = &r.mesh.positions;
+        let areas: Vec<f64> = r
+            .mesh
+            .faces()
+            .map(|f| {
+                let (a, b, c) = (p[f[0] as usize], p[f[1] as usize], p[f[2] as usize]);
+                (b - a).cross(c - a).length() / 2.0
+            })
+            .collect();
+        let mean = areas.iter().sum::<f64>() / areas.len() as f64;
+        let var = areas.iter().map(|a| (a - mean).powi(2)).sum::<f64>() / areas.len() as f64;
+        (psnr, var.sqrt() / mean)
+    };
+    let (dyadic, dyadic_spread) = run(0);
+    let (relaxed, relaxed_spread) = run(30);
+    eprintln!("dyadic {dyadic:.2} dB (area spread {dyadic_spread:.3}), relaxed {relaxed:.2} dB ({relaxed_spread:.3})");
+    assert!(
+        relaxed_spread < 0.8 * dyadic_spread,
+        "{relaxed_spread:.3} vs {dyadic_spread:.3}"
+    );
+    assert!(relaxed > dyadic - 0.5, "{relaxed:.2} vs {dyadic:.2} dB");
+}

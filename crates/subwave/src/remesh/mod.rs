@@ -32,6 +32,7 @@ mod flatten;
 pub mod fold_repair;
 pub mod normal;
 pub mod param;
+pub mod param_relax;
 pub mod quality;
 pub mod repair;
 pub mod resample;
@@ -106,6 +107,11 @@ pub struct RemeshOptions {
     pub repair: bool,
     /// Relaxation iterations on the finest level.
     pub relax_iterations: u32,
+    /// Steps of the coarse-to-fine relaxation of the resampling parameters
+    /// ([`param_relax`]) on each level from the third on (fewer on the finest and on large
+    /// levels, [`param_relax::schedule`]); 0 keeps the dyadic parameters. Triangle
+    /// hierarchies only.
+    pub param_relax_iterations: u32,
     /// Which method to run.
     pub method: MethodChoice,
 }
@@ -119,6 +125,7 @@ impl Default for RemeshOptions {
             sharp_angle: None,
             repair: false,
             relax_iterations: 6,
+            param_relax_iterations: 30,
             method: MethodChoice::Auto,
         }
     }
@@ -133,9 +140,11 @@ pub struct Timings {
     pub simplify_ms: f64,
     /// Charts and point-location grids.
     pub parameterize_ms: f64,
-    /// Splitting and mapping (or shrink-wrapping).
+    /// Coarse-to-fine relaxation of the sampling in the base domain ([`param_relax`]).
+    pub param_relax_ms: f64,
+    /// Splitting and mapping (or shrink-wrapping), of both samplings when both ran.
     pub resample_ms: f64,
-    /// Relaxation.
+    /// Relaxation, untangling and fold repair (of both samplings when both ran).
     pub relax_ms: f64,
     /// Everything, including the quality measurement.
     pub total_ms: f64,
@@ -281,7 +290,7 @@ pub fn remesh_with_progress(
     progress("parameterize", 1.0);
 
     // 4. Hierarchy and resampling.
-    let t = Instant::now();
+    let t_h = Instant::now();
     let (split, base) = if opts.quads {
         let h1 = Hierarchy::new(&base_tri, 1, Split::Polygons, None)?;
         (Split::Polygons, h1.finest_mesh())
@@ -307,252 +316,320 @@ pub fn remesh_with_progress(
         (Split::Triangles, b)
     };
     let mut h = Hierarchy::new(&base, opts.levels, split, None)?;
-    let params = resample::level_params(&h, opts.levels as usize, opts.quads);
-    let located: Vec<param::Located> = params.par_iter().map(|p| map.locate(p)).collect();
-    // Points outside every image registered in their base triangle: the nearest image in
-    // the frames of the triangles around it.
-    let around: Vec<Option<param::Located>> = located
-        .par_iter()
-        .zip(&params)
-        .map(|(l, p)| {
-            if l.inside >= -OUTSIDE {
-                None
-            } else {
-                map.locate_around(p)
-                    .filter(|a| a.inside > l.inside && a.inside >= -NEAR_IMAGE)
-            }
-        })
-        .collect();
-    let param_misses = located
-        .iter()
-        .zip(&around)
-        .filter(|(l, a)| l.inside < -NEAR_IMAGE && a.is_none())
-        .count();
-    if tracing::enabled!(tracing::Level::DEBUG) {
-        let diag = prepared.diagonal();
-        let errs: Vec<f64> = s
-            .params
+    // The resampling, relaxation and repair of one set of parameters (dyadic, or relaxed
+    // in the base domain).
+    let sample = |params: Vec<simplify::Param>, progress: &mut dyn FnMut(&str, f64)| -> Sampled {
+        let t = Instant::now();
+        let mut run_warnings = Vec::new();
+        let located: Vec<param::Located> = params.par_iter().map(|p| map.locate(p)).collect();
+        // Points outside every image registered in their base triangle: the nearest image in
+        // the frames of the triangles around it.
+        let around: Vec<Option<param::Located>> = located
             .par_iter()
-            .zip(&pos)
-            .map(|(p, x)| {
-                let l = map.locate(p);
-                map.point(&l)
-                    .map_or(f64::INFINITY, |q| q.distance(*x) / diag)
-            })
-            .collect();
-        tracing::debug!(
-            max = errs.iter().copied().fold(0.0, f64::max),
-            mean = errs.iter().sum::<f64>() / errs.len() as f64,
-            over_1pc = errs.iter().filter(|&&e| e > 0.01).count(),
-            over_01pc = errs.iter().filter(|&&e| e > 0.001).count(),
-            "map at the input vertices' own parameters (relative to the diagonal)"
-        );
-    }
-    tracing::debug!(
-        unregistered = map.unregistered,
-        param_misses,
-        slightly_outside = located.iter().filter(|l| l.inside < -1e-6).count(),
-        base_vertices = s.positions.len(),
-        chain_edges = s.chain_edges.len(),
-        "parameterization"
-    );
-    let (mut fine, mut hints) = initial_positions(&map, &located, &around, &params, &s, &proj);
-    // Base vertices are input vertices; vertices on boundary and feature base edges follow
-    // the input's chain between them (1D parameterization along the chain).
-    let chains = chain_polylines(&s, &pos);
-    fine.par_iter_mut().zip(&params).for_each(|(p, prm)| {
-        let t = s.triangles[prm.face as usize];
-        if let Some(k) = prm.bary.iter().position(|&x| x == 1.0) {
-            *p = s.positions[t[k] as usize];
-            return;
-        }
-        for k in 0..3 {
-            if prm.bary[k] != 0.0 {
-                continue;
-            }
-            let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-            if let Some(line) = chains.get(&(a.min(b), a.max(b))) {
-                // Parameter along the sorted edge (min → max).
-                let sa = prm.bary[(k + 1) % 3];
-                let along = if a < b { 1.0 - sa } else { sa };
-                *p = polyline_at(line, along);
-            }
-        }
-    });
-    progress("resample", 1.0);
-    // Fixed vertices: base vertices and vertices on chain base edges.
-    let fixed: Vec<bool> = params
-        .iter()
-        .map(|p| {
-            let t = s.triangles[p.face as usize];
-            if p.bary.contains(&1.0) {
-                return true;
-            }
-            (0..3).any(|k| {
-                p.bary[k] == 0.0 && {
-                    let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-                    s.chain_edges.contains(&(a.min(b), a.max(b)))
+            .zip(&params)
+            .map(|(l, p)| {
+                if l.inside >= -OUTSIDE {
+                    None
+                } else {
+                    map.locate_around(p)
+                        .filter(|a| a.inside > l.inside && a.inside >= -NEAR_IMAGE)
                 }
             })
-        })
-        .collect();
-    let genus0 = Topology::build(&prepared).genus() == Some(0);
-    let mut method = Method::Maps;
-    let miss_limit = (fine.len() / 20).max(8);
-    let use_shrinkwrap = match opts.method {
-        MethodChoice::ShrinkWrap => true,
-        MethodChoice::Maps => false,
-        MethodChoice::Auto => param_misses > miss_limit && genus0,
-    };
-    if opts.method == MethodChoice::Auto && param_misses > miss_limit && !genus0 {
-        warnings.push(format!(
-            "{param_misses} resampled points fell outside the parameterization (kept their nearest image); shrink-wrapping needs genus 0"
-        ));
-    }
-    timings.resample_ms = ms(t);
-    let t = Instant::now();
-    // Off-surface tolerance of the final repair: coarser levels stand farther off the input
-    // (chordal error, about four times per level).
-    let off_surface =
-        OFF_SURFACE * prepared.diagonal() * 4f64.powi((5 - opts.levels as i32).max(0));
-    // Faces flipped against the input (quality measure), as the final repair counted them.
-    let flipped_after;
-    if use_shrinkwrap {
-        if opts.method == MethodChoice::Auto {
-            warnings.push(format!(
-                "parameterization missed {param_misses} points: fell back to shrink-wrapping"
-            ));
-        }
-        method = Method::ShrinkWrap;
-        let nb = h.base.positions.len();
-        hints.fill(u32::MAX);
-        fine = shrinkwrap::shrinkwrap(
-            &h,
-            &fixed[..nb],
-            &proj,
-            opts.relax_iterations.max(2),
-            &mut |f| progress("resample", f),
-        );
-        // The same final repair as after MAPS (the base vertices stay).
-        hints = fine.par_iter().map(|&p| proj.closest(p).1).collect();
-        let mut base_fixed = vec![false; fine.len()];
-        base_fixed[..nb].fill(true);
-        let topo = &h.topologies[opts.levels as usize];
-        let fr = fold_repair::repair_folds(
-            &mut fine,
-            &mut hints,
-            topo,
-            &base_fixed,
-            &[],
-            &proj,
-            12,
-            None,
-            off_surface,
-        );
-        tracing::debug!(?fr, "fold repair after shrink-wrapping");
-        flipped_after = fr.flipped_after;
-    } else {
-        progress("relax", 0.0);
-        let topo = &h.topologies[opts.levels as usize];
-        resample::relax(
-            &mut fine,
-            &mut hints,
-            topo,
-            &fixed,
-            &proj,
-            opts.relax_iterations,
-            0.5,
-        );
-        // Untangling may also slide base vertices that are not on a boundary or feature
-        // chain (they are not corners of any curve) tangentially on the input.
-        let mut on_chain = vec![false; s.positions.len()];
-        for &(a, b) in &s.chain_edges {
-            on_chain[a as usize] = true;
-            on_chain[b as usize] = true;
-        }
-        let pinned: Vec<bool> = params
+            .collect();
+        let param_misses = located
             .iter()
-            .zip(&fixed)
-            .map(|(p, &f)| {
-                f && match p.bary.iter().position(|&x| x == 1.0) {
-                    Some(k) => on_chain[s.triangles[p.face as usize][k] as usize],
-                    None => true,
-                }
-            })
-            .collect();
-        let relaxed_ms = ms(t);
-        resample::untangle(&mut fine, &mut hints, topo, &pinned, &proj, 6);
-        let untangled_ms = ms(t);
-        // Final guarded projection of every free vertex onto its closest input point (a
-        // relaxation step of length zero), then untangling again.
-        resample::relax(&mut fine, &mut hints, topo, &pinned, &proj, 1, 0.0);
-        let suspects = resample::untangle_bad(&mut fine, &mut hints, topo, &pinned, &proj, 12);
-        // Last, the faces still flipped or degenerate: vertices into their stars' kernels,
-        // discs re-embedded.
-        // Vertices on the remesh boundary below the base level may slide along the input's
-        // boundary where a fold next to a hole needs it.
-        let nb = h.base.positions.len();
-        let slides: Vec<bool> = (0..fine.len())
-            .map(|v| {
-                v >= nb
-                    && pinned[v]
-                    && topo
-                        .vertex_edges(v)
-                        .iter()
-                        .any(|&e| topo.is_boundary_edge(e as usize))
-            })
-            .collect();
-        let fr = fold_repair::repair_folds(
-            &mut fine,
-            &mut hints,
-            topo,
-            &pinned,
-            &slides,
-            &proj,
-            12,
-            Some(&suspects),
-            off_surface,
-        );
-        tracing::debug!(suspects = suspects.len(), ?fr, "fold repair");
-        let left = fr.flipped_after;
-        flipped_after = fr.flipped_after;
-        tracing::debug!(
-            relaxed_ms,
-            untangled_ms,
-            total_ms = ms(t),
-            "relaxation stage times (cumulative)"
-        );
+            .zip(&around)
+            .filter(|(l, a)| l.inside < -NEAR_IMAGE && a.is_none())
+            .count();
         if tracing::enabled!(tracing::Level::DEBUG) {
-            let flips = resample::flipped_faces(topo, &fine, &hints, &proj);
-            let nbv = h.base.positions.len() as u32;
-            let mut at_base = 0;
-            let mut at_fixed = 0;
-            let mut at_miss = 0;
-            for (f, &fl) in flips.iter().enumerate() {
-                if !fl {
+            let diag = prepared.diagonal();
+            let errs: Vec<f64> = s
+                .params
+                .par_iter()
+                .zip(&pos)
+                .map(|(p, x)| {
+                    let l = map.locate(p);
+                    map.point(&l)
+                        .map_or(f64::INFINITY, |q| q.distance(*x) / diag)
+                })
+                .collect();
+            tracing::debug!(
+                max = errs.iter().copied().fold(0.0, f64::max),
+                mean = errs.iter().sum::<f64>() / errs.len() as f64,
+                over_1pc = errs.iter().filter(|&&e| e > 0.01).count(),
+                over_01pc = errs.iter().filter(|&&e| e > 0.001).count(),
+                "map at the input vertices' own parameters (relative to the diagonal)"
+            );
+        }
+        tracing::debug!(
+            unregistered = map.unregistered,
+            param_misses,
+            slightly_outside = located.iter().filter(|l| l.inside < -1e-6).count(),
+            base_vertices = s.positions.len(),
+            chain_edges = s.chain_edges.len(),
+            "parameterization"
+        );
+        let (mut fine, mut hints) = initial_positions(&map, &located, &around, &params, &s, &proj);
+        // Base vertices are input vertices; vertices on boundary and feature base edges follow
+        // the input's chain between them (1D parameterization along the chain).
+        let chains = chain_polylines(&s, &pos, opts.levels);
+        fine.par_iter_mut().zip(&params).for_each(|(p, prm)| {
+            let t = s.triangles[prm.face as usize];
+            if let Some(k) = prm.bary.iter().position(|&x| x == 1.0) {
+                *p = s.positions[t[k] as usize];
+                return;
+            }
+            for k in 0..3 {
+                if prm.bary[k] != 0.0 {
                     continue;
                 }
-                let fv = topo.face_vertices(f);
-                if fv.iter().any(|&v| v < nbv) {
-                    at_base += 1;
-                }
-                if fv.iter().any(|&v| fixed[v as usize]) {
-                    at_fixed += 1;
-                }
-                if fv.iter().any(|&v| located[v as usize].inside < -1e-6) {
-                    at_miss += 1;
+                let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+                if let Some(line) = chains.get(&(a.min(b), a.max(b))) {
+                    // Parameter along the sorted edge (min → max).
+                    let sa = prm.bary[(k + 1) % 3];
+                    let along = if a < b { 1.0 - sa } else { sa };
+                    *p = polyline_at(line, along);
                 }
             }
-            tracing::debug!(left, at_base, at_fixed, at_miss, "flipped faces");
-        }
-        if left > 0 {
-            warnings.push(format!(
-                "{left} face(s) still flipped after untangling and repair"
+        });
+        progress("resample", 1.0);
+        // Fixed vertices: base vertices and vertices on chain base edges.
+        let fixed: Vec<bool> = params
+            .iter()
+            .map(|p| {
+                let t = s.triangles[p.face as usize];
+                if p.bary.contains(&1.0) {
+                    return true;
+                }
+                (0..3).any(|k| {
+                    p.bary[k] == 0.0 && {
+                        let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+                        s.chain_edges.contains(&(a.min(b), a.max(b)))
+                    }
+                })
+            })
+            .collect();
+        let genus0 = Topology::build(&prepared).genus() == Some(0);
+        let mut method = Method::Maps;
+        let miss_limit = (fine.len() / 20).max(8);
+        let use_shrinkwrap = match opts.method {
+            MethodChoice::ShrinkWrap => true,
+            MethodChoice::Maps => false,
+            MethodChoice::Auto => param_misses > miss_limit && genus0,
+        };
+        if opts.method == MethodChoice::Auto && param_misses > miss_limit && !genus0 {
+            run_warnings.push(format!(
+                "{param_misses} resampled points fell outside the parameterization (kept their nearest image); shrink-wrapping needs genus 0"
             ));
         }
-        progress("relax", 1.0);
+        let resample_ms = ms(t);
+        let t = Instant::now();
+        // Off-surface tolerance of the final repair: coarser levels stand farther off the input
+        // (chordal error, about four times per level).
+        let off_surface =
+            OFF_SURFACE * prepared.diagonal() * 4f64.powi((5 - opts.levels as i32).max(0));
+        // Faces flipped against the input (quality measure), as the final repair counted them.
+        let flipped_after;
+        let degenerate_after;
+        if use_shrinkwrap {
+            if opts.method == MethodChoice::Auto {
+                run_warnings.push(format!(
+                    "parameterization missed {param_misses} points: fell back to shrink-wrapping"
+                ));
+            }
+            method = Method::ShrinkWrap;
+            let nb = h.base.positions.len();
+            hints.fill(u32::MAX);
+            fine = shrinkwrap::shrinkwrap(
+                &h,
+                &fixed[..nb],
+                &proj,
+                opts.relax_iterations.max(2),
+                &mut |f| progress("resample", f),
+            );
+            // The same final repair as after MAPS (the base vertices stay).
+            hints = fine.par_iter().map(|&p| proj.closest(p).1).collect();
+            let mut base_fixed = vec![false; fine.len()];
+            base_fixed[..nb].fill(true);
+            let topo = &h.topologies[opts.levels as usize];
+            let fr = fold_repair::repair_folds(
+                &mut fine,
+                &mut hints,
+                topo,
+                &base_fixed,
+                &[],
+                &proj,
+                12,
+                None,
+                off_surface,
+            );
+            tracing::debug!(?fr, "fold repair after shrink-wrapping");
+            flipped_after = fr.flipped_after;
+            degenerate_after = fr.degenerate_after;
+        } else {
+            progress("relax", 0.0);
+            let topo = &h.topologies[opts.levels as usize];
+            resample::relax(
+                &mut fine,
+                &mut hints,
+                topo,
+                &fixed,
+                &proj,
+                opts.relax_iterations,
+                0.5,
+            );
+            // Untangling may also slide base vertices that are not on a boundary or feature
+            // chain (they are not corners of any curve) tangentially on the input.
+            let mut on_chain = vec![false; s.positions.len()];
+            for &(a, b) in &s.chain_edges {
+                on_chain[a as usize] = true;
+                on_chain[b as usize] = true;
+            }
+            let pinned: Vec<bool> = params
+                .iter()
+                .zip(&fixed)
+                .map(|(p, &f)| {
+                    f && match p.bary.iter().position(|&x| x == 1.0) {
+                        Some(k) => on_chain[s.triangles[p.face as usize][k] as usize],
+                        None => true,
+                    }
+                })
+                .collect();
+            let relaxed_ms = ms(t);
+            resample::untangle(&mut fine, &mut hints, topo, &pinned, &proj, 6);
+            let untangled_ms = ms(t);
+            // Final guarded projection of every free vertex onto its closest input point (a
+            // relaxation step of length zero), then untangling again.
+            resample::relax(&mut fine, &mut hints, topo, &pinned, &proj, 1, 0.0);
+            let suspects = resample::untangle_bad(&mut fine, &mut hints, topo, &pinned, &proj, 12);
+            // Last, the faces still flipped or degenerate: vertices into their stars' kernels,
+            // discs re-embedded.
+            // Vertices on the remesh boundary below the base level may slide along the input's
+            // boundary where a fold next to a hole needs it.
+            let nb = h.base.positions.len();
+            let slides: Vec<bool> = (0..fine.len())
+                .map(|v| {
+                    v >= nb
+                        && pinned[v]
+                        && topo
+                            .vertex_edges(v)
+                            .iter()
+                            .any(|&e| topo.is_boundary_edge(e as usize))
+                })
+                .collect();
+            let fr = fold_repair::repair_folds(
+                &mut fine,
+                &mut hints,
+                topo,
+                &pinned,
+                &slides,
+                &proj,
+                12,
+                Some(&suspects),
+                off_surface,
+            );
+            tracing::debug!(suspects = suspects.len(), ?fr, "fold repair");
+            let left = fr.flipped_after;
+            flipped_after = fr.flipped_after;
+            degenerate_after = fr.degenerate_after;
+            tracing::debug!(
+                relaxed_ms,
+                untangled_ms,
+                total_ms = ms(t),
+                "relaxation stage times (cumulative)"
+            );
+            if tracing::enabled!(tracing::Level::DEBUG) {
+                let flips = resample::flipped_faces(topo, &fine, &hints, &proj);
+                let nbv = h.base.positions.len() as u32;
+                let mut at_base = 0;
+                let mut at_fixed = 0;
+                let mut at_miss = 0;
+                for (f, &fl) in flips.iter().enumerate() {
+                    if !fl {
+                        continue;
+                    }
+                    let fv = topo.face_vertices(f);
+                    if fv.iter().any(|&v| v < nbv) {
+                        at_base += 1;
+                    }
+                    if fv.iter().any(|&v| fixed[v as usize]) {
+                        at_fixed += 1;
+                    }
+                    if fv.iter().any(|&v| located[v as usize].inside < -1e-6) {
+                        at_miss += 1;
+                    }
+                }
+                tracing::debug!(left, at_base, at_fixed, at_miss, "flipped faces");
+            }
+            if left > 0 {
+                run_warnings.push(format!(
+                    "{left} face(s) still flipped after untangling and repair"
+                ));
+            }
+            progress("relax", 1.0);
+        }
+        Sampled {
+            fine,
+            method,
+            flipped: flipped_after,
+            degenerate: degenerate_after,
+            param_misses,
+            warnings: run_warnings,
+            resample_ms,
+            relax_ms: ms(t),
+        }
+    };
+    let hierarchy_ms = ms(t_h);
+    let levels = opts.levels as usize;
+    let n = if opts.quads {
+        0
+    } else {
+        opts.param_relax_iterations
+    };
+    // The relaxed sampling first; where it leaves flipped or degenerate faces, the dyadic
+    // one too, and the one with fewer is kept (the repairs after either are not monotone:
+    // on the corpus at 5 levels, each has fewer on some meshes).
+    let mut run = if n > 0 {
+        let t = Instant::now();
+        progress("sampling", 0.0);
+        let relaxed = param_relax::relaxed_params(&h, levels, &map, &s.chain_edges, |l| {
+            param_relax::schedule(n, l, levels, h.topologies[l].num_faces())
+        });
+        timings.param_relax_ms = ms(t);
+        progress("sampling", 1.0);
+        sample(relaxed, progress)
+    } else {
+        sample(resample::level_params(&h, levels, opts.quads), progress)
+    };
+    if n > 0 && run.flipped + run.degenerate > 0 {
+        // (The progress bar stays where the first run left it.)
+        let dyadic = sample(
+            resample::level_params(&h, levels, opts.quads),
+            &mut |_, _| {},
+        );
+        tracing::debug!(
+            relaxed = run.flipped + run.degenerate,
+            dyadic = dyadic.flipped + dyadic.degenerate,
+            "bad faces of the relaxed and dyadic samplings"
+        );
+        let resample_ms = run.resample_ms + dyadic.resample_ms;
+        let relax_ms = run.relax_ms + dyadic.relax_ms;
+        if dyadic.flipped + dyadic.degenerate < run.flipped + run.degenerate {
+            run = dyadic;
+        }
+        run.resample_ms = resample_ms;
+        run.relax_ms = relax_ms;
     }
-    timings.relax_ms = ms(t);
+    timings.resample_ms = hierarchy_ms + run.resample_ms;
+    timings.relax_ms = run.relax_ms;
+    warnings.append(&mut run.warnings);
+    let Sampled {
+        fine,
+        method,
+        flipped: flipped_after,
+        param_misses,
+        ..
+    } = run;
     let nb = h.base.positions.len();
     h.base.positions.copy_from_slice(&fine[..nb]);
     h.positions = fine;
@@ -586,6 +663,18 @@ pub fn remesh_with_progress(
 /// removed that fold). 0.3%: beetle 63.0 → 77.0 dB, bunny 77.4 → 79.6 dB, cheburashka
 /// 75.3 → 79.5 dB; 0.5% misses most of beetle's patch (70.0 dB), 0.2% is no better there (76.7 dB, 502 flipped).
 const OFF_SURFACE: f64 = 0.003;
+
+/// One resampling of the finest level ([`remesh_with_progress`]).
+struct Sampled {
+    fine: Vec<DVec3>,
+    method: Method,
+    flipped: usize,
+    degenerate: usize,
+    param_misses: usize,
+    warnings: Vec<String>,
+    resample_ms: f64,
+    relax_ms: f64,
+}
 
 /// Points whose coordinates in the nearest image are below `-OUTSIDE` are outside it.
 const OUTSIDE: f64 = 1e-6;
@@ -633,6 +722,7 @@ fn initial_positions(
 fn chain_polylines(
     s: &simplify::Simplified,
     pos: &[DVec3],
+    levels: u32,
 ) -> std::collections::HashMap<(u32, u32), Vec<(f64, DVec3)>> {
     let mut out: std::collections::HashMap<(u32, u32), Vec<(f64, DVec3)>> = s
         .chain_edges
@@ -670,8 +760,32 @@ fn chain_polylines(
     // interior, which follows the tracked parameterization, and folded them.
     for line in out.values_mut() {
         line.sort_by(|x, y| x.0.total_cmp(&y.0));
+        drop_spikes(line, levels);
     }
     out
+}
+
+/// Removes the spikes of a chain polyline that are finer than the resampling: interior
+/// points where the curve turns back (by more than 120°) with both segments shorter than
+/// four spacings of the `2^levels` samples along the chain. The resampled chain through such
+/// a point has an edge pointing backwards, and the face on it is flipped whatever its third
+/// corner (bunny at 5 levels: 2 of its 3 flipped faces, on hole rims whose input has
+/// 0.3 mm sliver notches). Cutting the spike keeps the samples on its base, within the
+/// notch's width of the input.
+fn drop_spikes(line: &mut Vec<(f64, DVec3)>, levels: u32) {
+    let length: f64 = line.windows(2).map(|w| w[0].1.distance(w[1].1)).sum();
+    let spacing = length / f64::from(1u32 << levels.min(30));
+    let mut i = 1;
+    while i + 1 < line.len() {
+        let (a, b) = (line[i].1 - line[i - 1].1, line[i + 1].1 - line[i].1);
+        let (la, lb) = (a.length(), b.length());
+        if la < 4.0 * spacing && lb < 4.0 * spacing && a.dot(b) < -0.5 * la * lb {
+            line.remove(i);
+            i = i.saturating_sub(1).max(1);
+        } else {
+            i += 1;
+        }
+    }
 }
 
 /// The point at parameter `s` of a sorted polyline.
@@ -689,5 +803,48 @@ fn polyline_at(line: &[(f64, DVec3)], s: f64) -> DVec3 {
         p0
     } else {
         p0.lerp(p1, (s - s0) / (s1 - s0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(points: &[[f64; 2]]) -> Vec<(f64, DVec3)> {
+        let n = (points.len() - 1) as f64;
+        points
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (i as f64 / n, DVec3::new(p[0], p[1], 0.0)))
+            .collect()
+    }
+
+    #[test]
+    fn spikes_finer_than_the_sampling_are_cut() {
+        // A straight chain of length 1 with a notch 0.02 deep (a turn back of ~160°).
+        let mut l = line(&[
+            [0.0, 0.0],
+            [0.5, 0.0],
+            [0.49, 0.02],
+            [0.51, 0.0],
+            [1.0, 0.0],
+        ]);
+        drop_spikes(&mut l, 5);
+        let xs: Vec<f64> = l.iter().map(|p| p.1.x).collect();
+        assert_eq!(xs, vec![0.0, 0.5, 0.51, 1.0], "{l:?}");
+        // The same notch is kept when the samples are finer than it.
+        let mut l = line(&[
+            [0.0, 0.0],
+            [0.5, 0.0],
+            [0.49, 0.02],
+            [0.51, 0.0],
+            [1.0, 0.0],
+        ]);
+        drop_spikes(&mut l, 9);
+        assert_eq!(l.len(), 5);
+        // A hairpin of long segments is a shape, not a spike.
+        let mut l = line(&[[0.0, 0.0], [1.0, 0.0], [0.0, 0.1]]);
+        drop_spikes(&mut l, 3);
+        assert_eq!(l.len(), 3);
     }
 }

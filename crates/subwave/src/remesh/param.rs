@@ -194,6 +194,13 @@ impl<'a> ParamMap<'a> {
             .map(|(_, m)| mul(m, p.bary))
     }
 
+    /// The parameter of the point with coordinates `c` in `t`'s frame: in `t` if all of `c`
+    /// is non-negative, else in the triangle of `t`'s chart that contains it (edge
+    /// neighbours first); `None` if none does.
+    pub fn relocate(&self, t: u32, c: [f64; 3]) -> Option<Param> {
+        relocate(&self.charts, t, c)
+    }
+
     /// The chart of `t`: its neighbours and the matrices taking their barycentric
     /// coordinates to `t`'s frame.
     pub fn chart(&self, t: u32) -> impl Iterator<Item = (u32, [[f64; 3]; 3])> + '_ {
@@ -284,6 +291,13 @@ impl<'a> ParamMap<'a> {
                 inside: f64::NEG_INFINITY,
             },
         }
+    }
+
+    /// The (unnormalized) normal of input triangle `tri`.
+    pub fn input_normal(&self, tri: u32) -> DVec3 {
+        let t = self.input_tris[tri as usize];
+        let p = |k: usize| self.input_pos[t[k] as usize];
+        (p(1) - p(0)).cross(p(2) - p(0))
     }
 
     /// The input-surface point of a located parameter (`None` if nothing was found).
