@@ -11,10 +11,13 @@
 //!    boundary and feature edges kept as chains, each removed vertex's parameter tracked over
 //!    the simplified triangles (MAPS §3);
 //! 3. [`param`]: the resulting map from the base domain onto the input (MAPS §3.4);
-//! 4. [`resample`]: `L` splits of the base domain, every vertex mapped onto the input through
-//!    the parameterization (MAPS §4), then a tangential relaxation with guarded re-projection
-//!    for well-shaped triangles; boundary and feature base edges keep their vertices on the
-//!    input's boundary curves and creases;
+//! 4. [`param_relax`]: the sample points of the `L` splits of the base domain, relaxed in
+//!    the base domain coarse to fine so that they spread evenly over the input (MAPS §4;
+//!    the dyadic points are resampled too when the relaxed ones end with more bad faces);
+//!    [`resample`]: every vertex mapped onto the input through the parameterization, then
+//!    a tangential relaxation with guarded re-projection for well-shaped triangles;
+//!    boundary and feature base edges keep their vertices on the input's boundary curves
+//!    and creases (notches finer than the samples cut);
 //!    then [`fold_repair`] moves the vertices of faces still flipped against the input or
 //!    degenerate into the kernels of their stars (re-embedding discs where single moves
 //!    do not suffice: as a membrane, or by Tutte's embedding in a flattening of the input
