@@ -274,16 +274,7 @@ pub fn remesh_with_progress(
     let param_fixed: Vec<bool> = s
         .params
         .iter()
-        .map(|p| {
-            let t = s.triangles[p.face as usize];
-            p.bary.contains(&1.0)
-                || (0..3).any(|k| {
-                    p.bary[k] == 0.0 && {
-                        let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-                        s.chain_edges.contains(&(a.min(b), a.max(b)))
-                    }
-                })
-        })
+        .map(|p| p.is_pinned(s.triangles[p.face as usize], &s.chain_edges))
         .collect();
     let (bad_before, bad_after) =
         param::untangle_params(&base_tri, &tris, &mut s.params, &param_fixed, 4);
@@ -382,35 +373,15 @@ pub fn remesh_with_progress(
                 *p = s.positions[t[k] as usize];
                 return;
             }
-            for k in 0..3 {
-                if prm.bary[k] != 0.0 {
-                    continue;
-                }
-                let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-                if let Some(line) = chains.get(&(a.min(b), a.max(b))) {
-                    // Parameter along the sorted edge (min → max).
-                    let sa = prm.bary[(k + 1) % 3];
-                    let along = if a < b { 1.0 - sa } else { sa };
-                    *p = polyline_at(line, along);
-                }
+            if let Some((e, along)) = prm.on_edge(t, |e| chains.contains_key(&e)) {
+                *p = polyline_at(&chains[&e], along);
             }
         });
         progress("resample", 1.0);
         // Fixed vertices: base vertices and vertices on chain base edges.
         let fixed: Vec<bool> = params
             .iter()
-            .map(|p| {
-                let t = s.triangles[p.face as usize];
-                if p.bary.contains(&1.0) {
-                    return true;
-                }
-                (0..3).any(|k| {
-                    p.bary[k] == 0.0 && {
-                        let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-                        s.chain_edges.contains(&(a.min(b), a.max(b)))
-                    }
-                })
-            })
+            .map(|p| p.is_pinned(s.triangles[p.face as usize], &s.chain_edges))
             .collect();
         let genus0 = Topology::build(&prepared).genus() == Some(0);
         let mut method = Method::Maps;
@@ -741,18 +712,9 @@ fn chain_polylines(
         })
         .collect();
     for (v, p) in s.params.iter().enumerate() {
-        if p.bary.contains(&1.0) {
-            continue;
-        }
         let t = s.triangles[p.face as usize];
-        for k in 0..3 {
-            if p.bary[k] != 0.0 {
-                continue;
-            }
-            let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-            if let Some(line) = out.get_mut(&(a.min(b), a.max(b))) {
-                let sa = p.bary[(k + 1) % 3];
-                let along = if a < b { 1.0 - sa } else { sa };
+        if let Some((e, along)) = p.on_edge(t, |e| out.contains_key(&e)) {
+            if let Some(line) = out.get_mut(&e) {
                 line.push((along, pos[v]));
             }
         }

@@ -69,20 +69,6 @@ pub fn schedule(n: u32, l: usize, levels: usize, faces: usize) -> u32 {
     }
 }
 
-/// Whether dyadic parameter `p` must stay: a base vertex, or a point of a chain base edge.
-fn pinned(p: &Param, base_tris: &[[u32; 3]], chains: &PairSet) -> bool {
-    if p.bary.contains(&1.0) {
-        return true;
-    }
-    let t = base_tris[p.face as usize];
-    (0..3).any(|k| {
-        p.bary[k] == 0.0 && {
-            let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-            chains.contains(&(a.min(b), a.max(b)))
-        }
-    })
-}
-
 /// Twice the signed area of the triangle of frame points `a`, `b`, `c` (coordinates 1 and
 /// 2 of the barycentric frame).
 fn orient(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
@@ -132,7 +118,7 @@ pub fn relaxed_params(
         let nprev = prev.num_vertices as usize;
         let fixed: Vec<bool> = dyadic
             .par_iter()
-            .map(|p| pinned(p, base_tris, chains))
+            .map(|p| p.is_pinned(base_tris[p.face as usize], chains))
             .collect();
         let mut next: Vec<Param> = Vec::with_capacity(dyadic.len());
         next.extend_from_slice(&params);

@@ -76,6 +76,36 @@ pub struct Param {
     pub bary: [f64; 3],
 }
 
+impl Param {
+    /// The base edge of triangle `tri` (this parameter's base triangle) that the point lies
+    /// on, if `is_edge` accepts it (as a sorted vertex pair), with the point's position
+    /// along it from its smaller vertex to its larger (0 to 1). `None` for a base vertex or
+    /// a point on no accepted edge.
+    pub fn on_edge(
+        &self,
+        tri: [u32; 3],
+        is_edge: impl Fn((u32, u32)) -> bool,
+    ) -> Option<((u32, u32), f64)> {
+        if self.bary.contains(&1.0) {
+            return None;
+        }
+        (0..3).find_map(|k| {
+            let (a, b) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
+            let key = (a.min(b), a.max(b));
+            (self.bary[k] == 0.0 && is_edge(key)).then(|| {
+                let sa = self.bary[(k + 1) % 3];
+                (key, if a < b { 1.0 - sa } else { sa })
+            })
+        })
+    }
+
+    /// Whether the point is a base vertex or lies on one of the `chains` base edges (of its
+    /// base triangle `tri`): the points the remesher keeps on the input's curves.
+    pub fn is_pinned(&self, tri: [u32; 3], chains: &PairSet) -> bool {
+        self.bary.contains(&1.0) || self.on_edge(tri, |e| chains.contains(&e)).is_some()
+    }
+}
+
 /// The result of [`simplify`].
 #[derive(Clone, Debug)]
 pub struct Simplified {
