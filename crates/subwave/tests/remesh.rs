@@ -553,3 +553,52 @@ fn relaxed_sampling_spreads_the_samples_evenly() {
     );
     assert!(relaxed > dyadic - 0.5, "{relaxed:.2} vs {dyadic:.2} dB");
 }
+
+/// On two coincident sheets of opposite orientation (a unit square and its reversed copy
+/// a hair below it), a point keeps the sheet its hint names while the other is closer by
+/// less than `SHEET_TOLERANCE` of the diagonal; with no usable hint, or sheets farther
+/// apart than that, it gets the global closest point.
+#[test]
+fn closest_near_keeps_the_hinted_sheet_on_coincident_sheets() {
+    use subwave::remesh::resample::{Projector, SHEET_TOLERANCE};
+    let gap = 1e-6;
+    let pos = vec![
+        DVec3::new(0.0, 0.0, 0.0),
+        DVec3::new(1.0, 0.0, 0.0),
+        DVec3::new(1.0, 1.0, 0.0),
+        DVec3::new(0.0, 1.0, 0.0),
+        DVec3::new(0.0, 0.0, -gap),
+        DVec3::new(1.0, 0.0, -gap),
+        DVec3::new(1.0, 1.0, -gap),
+        DVec3::new(0.0, 1.0, -gap),
+    ];
+    // Top sheet facing +z (triangles 0, 1), bottom sheet facing -z (triangles 2, 3).
+    let tris = vec![[0, 1, 2], [0, 2, 3], [4, 6, 5], [4, 7, 6]];
+    let proj = Projector::new(&pos, &tris).unwrap();
+    let diagonal = (1.0f64 + 1.0 + gap * gap).sqrt();
+    assert!(gap < SHEET_TOLERANCE * diagonal);
+    // Just below the bottom sheet: the bottom sheet is closer, the hint names the top.
+    let p = DVec3::new(0.3, 0.6, -2.0 * gap);
+    let (q, t) = proj.closest_near(p, &[1]);
+    assert!(t < 2, "left the hinted top sheet for triangle {t}");
+    assert!((q.z - 0.0).abs() < 1e-15 && proj.normals[t as usize].z > 0.0);
+    // Without a hint, or hinting the bottom: the bottom sheet.
+    assert!(proj.closest_near(p, &[u32::MAX]).1 >= 2);
+    assert!(proj.closest_near(p, &[3]).1 >= 2);
+    // Sheets farther apart than the tolerance: the closer sheet, whatever the hint.
+    let wide = 1e-3;
+    assert!(wide > SHEET_TOLERANCE * 2f64.sqrt() * 1.01);
+    let pos: Vec<DVec3> = pos
+        .iter()
+        .map(|&p| {
+            if p.z < 0.0 {
+                DVec3::new(p.x, p.y, -wide)
+            } else {
+                p
+            }
+        })
+        .collect();
+    let proj = Projector::new(&pos, &tris).unwrap();
+    let below = DVec3::new(0.3, 0.6, -2.0 * wide);
+    assert!(proj.closest_near(below, &[1]).1 >= 2);
+}
