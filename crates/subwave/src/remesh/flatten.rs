@@ -60,9 +60,11 @@ const CG_ITERATIONS: usize = 2_000;
 /// Preconditions: `pos` and `hints` have `topo.num_vertices` entries, the vertices lie on
 /// the input behind `proj`, and `hints[v]` is an input triangle near vertex `v`; runs do
 /// not share vertices with `free` or each other.
-/// Returns `None` when a vertex of the disc lies outside the patch, a run's anchors are
-/// not joined by the input's boundary inside the patch, or the flat embedding of the disc
-/// still folds after the untangling.
+/// Returns `Err` when a vertex of the disc lies outside the patch or a run's anchors are
+/// not joined by the input's boundary inside the patch (with no vertices), or when the flat
+/// embedding of the disc still folds after the untangling (with the vertices of the faces
+/// still turned over, among them disc boundary vertices that would have to move: where a
+/// fold runs out of the disc, the caller grows the disc over them).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn flat_reembed(
     patch: &Patch,
@@ -73,7 +75,7 @@ pub(super) fn flat_reembed(
     runs: &[RimRun],
     disc_faces: &[u32],
     proj: &Projector,
-) -> Option<Vec<(DVec3, u32)>> {
+) -> Result<Vec<(DVec3, u32)>, Vec<u32>> {
     // The disc's vertices, free ones first, then the sliding ones.
     let mut local: HashMap<u32, u32> = HashMap::new();
     let mut verts: Vec<u32> = Vec::new();
@@ -96,9 +98,10 @@ pub(super) fn flat_reembed(
     let nslide: usize = runs.iter().map(|r| r.verts.len()).sum();
     let mut known: Vec<Option<DVec2>> = vec![None; verts.len()];
     let mut next = nfree;
+    let none = Vec::new;
     for run in runs {
-        let a = patch.rim_param(flat(run.anchors[0])?)?;
-        let b = patch.rim_param(flat(run.anchors[1])?)?;
+        let a = (flat(run.anchors[0]).and_then(|p| patch.rim_param(p))).ok_or_else(none)?;
+        let b = (flat(run.anchors[1]).and_then(|p| patch.rim_param(p))).ok_or_else(none)?;
         let total = patch.rim_arc[patch.rim.len()];
         // Both ways round the loop; the one along the input's boundary (the shorter if
         // both are).
@@ -106,7 +109,8 @@ pub(super) fn flat_reembed(
         let delta = [fwd, fwd - total]
             .into_iter()
             .filter(|&d| patch.rim_is_open(a, d))
-            .min_by(|x, y| x.abs().total_cmp(&y.abs()))?;
+            .min_by(|x, y| x.abs().total_cmp(&y.abs()))
+            .ok_or_else(none)?;
         let n = run.verts.len() as f64;
         for j in 0..run.verts.len() {
             known[next] = Some(patch.rim_point(a + delta * (j as f64 + 1.0) / (n + 1.0)));
@@ -114,7 +118,7 @@ pub(super) fn flat_reembed(
         }
     }
     for i in nfree + nslide..verts.len() {
-        known[i] = Some(flat(verts[i])?);
+        known[i] = Some(flat(verts[i]).ok_or_else(none)?);
     }
     let mut start = vec![0u32; verts.len() + 1];
     let mut adj: Vec<u32> = Vec::new();
@@ -122,14 +126,14 @@ pub(super) fn flat_reembed(
         if i < nfree {
             for &e in topo.vertex_edges(v as usize) {
                 let w = topo.other_vertex(e as usize, v);
-                adj.push(*local.get(&w)?);
+                adj.push(*local.get(&w).ok_or_else(none)?);
             }
         }
         start[i + 1] = adj.len() as u32;
     }
     let Some(uv) = tutte(&start, &adj, &known) else {
         tracing::trace!("flat: disc tutte failed");
-        return None;
+        return Err(none());
     };
     // Tutte's embedding folds next to reflex corners of the disc's boundary: move the
     // free vertices of folded faces into the kernels of their stars, as
@@ -146,11 +150,28 @@ pub(super) fn flat_reembed(
     let mut uv = uv;
     if !untangle_flat(&mut uv, nfree, &faces) {
         tracing::trace!(free = nfree, "flat: the disc stays folded in the plane");
-        return None;
+        let mut folded: Vec<u32> = faces
+            .iter()
+            .filter(|fv| !turns_ccw(&uv, fv))
+            .flat_map(|fv| fv.iter().map(|&i| verts[i as usize]))
+            .collect();
+        folded.sort_unstable();
+        folded.dedup();
+        return Err(folded);
     }
     (0..nfree + nslide)
         .map(|i| patch.lift(proj, uv[i]))
         .collect::<Option<Vec<_>>>()
+        .ok_or_else(none)
+}
+
+/// Whether flat polygon `fv` (node indices into `uv`) turns counterclockwise.
+fn turns_ccw(uv: &[DVec2], fv: &[u32]) -> bool {
+    let m = fv.len();
+    (0..m)
+        .map(|i| uv[fv[i] as usize].perp_dot(uv[fv[(i + 1) % m] as usize]))
+        .sum::<f64>()
+        > 0.0
 }
 
 /// Twice the signed area of a polygon.
@@ -566,14 +587,7 @@ fn untangle_flat(uv: &mut [DVec2], nfree: usize, faces: &[Vec<u32>]) -> bool {
             }
         }
     }
-    let ccw = |uv: &[DVec2], f: usize| {
-        let fv = &faces[f];
-        let m = fv.len();
-        (0..m)
-            .map(|i| uv[fv[i] as usize].perp_dot(uv[fv[(i + 1) % m] as usize]))
-            .sum::<f64>()
-            > 0.0
-    };
+    let ccw = |uv: &[DVec2], f: usize| turns_ccw(uv, &faces[f]);
     for _ in 0..UNTANGLE_SWEEPS {
         let mut bad = false;
         let mut moved = false;
