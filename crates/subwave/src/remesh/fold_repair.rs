@@ -535,9 +535,14 @@ fn reembed(
             }
             verts
         };
-        // The input under the largest disc, flattened once for every disc.
+        // The input under the largest disc, flattened once for every disc; where that is
+        // not a topological disc (it reaches across a boundary or onto another part of the
+        // input), the input under a smaller one (teapot at 5 levels: 40 flipped faces to
+        // 36, 82.0 to 84.5 dB; discs outside the patch are not re-embedded flat).
         let widest = RINGS.last().map_or(0, |&k| k + 1);
-        let patch = Patch::under(pos, hints, &grow(widest, &[]), proj);
+        let patch = [widest, 9, 5, 3]
+            .into_iter()
+            .find_map(|k| Patch::under(pos, hints, &grow(k, &[]), proj));
         let faces_around = |verts: &[u32]| {
             let mut faces: Vec<u32> = verts
                 .iter()
