@@ -174,8 +174,7 @@ impl Mesh {
 
     /// Length of the bounding-box diagonal (0 for an empty mesh).
     pub fn diagonal(&self) -> f64 {
-        self.bounding_box()
-            .map_or(0.0, |(lo, hi)| (hi - lo).length())
+        diagonal_of(&self.positions)
     }
 
     /// For each vertex, whether any face references it.
@@ -375,4 +374,15 @@ fn repeated_vertex(fv: &[u32]) -> Option<u32> {
         sorted.sort_unstable();
         sorted.windows(2).find(|w| w[0] == w[1]).map(|w| w[0])
     }
+}
+
+/// Length of the bounding-box diagonal of `points` (0 if there are none).
+pub fn diagonal_of(points: &[DVec3]) -> f64 {
+    let Some(&first) = points.first() else {
+        return 0.0;
+    };
+    let (lo, hi) = points
+        .iter()
+        .fold((first, first), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    (hi - lo).length()
 }

@@ -75,15 +75,6 @@ impl Projector {
             .iter()
             .map(|p| parry3d_f64::math::Vector::new(p.x, p.y, p.z))
             .collect();
-        let (lo, hi) = pos.iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(lo, hi), &p| (lo.min(p), hi.max(p)),
-        );
-        let diagonal = if pos.is_empty() {
-            0.0
-        } else {
-            (hi - lo).length()
-        };
         let shape = TriMesh::new(vertices, tris.to_vec())
             .map_err(|e| Error::InvalidArgument(format!("cannot index the triangles: {e:?}")))?;
         let mut fan_start = vec![0u32; pos.len() + 1];
@@ -110,7 +101,7 @@ impl Projector {
             fan_start,
             fan,
             normals,
-            sheet_tolerance: SHEET_TOLERANCE * diagonal,
+            sheet_tolerance: SHEET_TOLERANCE * crate::mesh::diagonal_of(pos),
         })
     }
 

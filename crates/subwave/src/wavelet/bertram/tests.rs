@@ -46,14 +46,6 @@ fn hierarchy(mesh: &Mesh, levels: u32) -> Refinement {
     quad_hierarchy(mesh, levels).unwrap()
 }
 
-fn bbox_diagonal(p: &[DVec3]) -> f64 {
-    let (lo, hi) = p.iter().fold(
-        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
-        |(lo, hi), &x| (lo.min(x), hi.max(x)),
-    );
-    (hi - lo).length()
-}
-
 fn max_diff(a: &[DVec3], b: &[DVec3]) -> f64 {
     assert_eq!(a.len(), b.len());
     a.iter()
@@ -151,7 +143,7 @@ fn perfect_reconstruction_float() {
         let r = hierarchy(&mesh, 3);
         let mut rng = Rng(1);
         let fine: Vec<DVec3> = r.positions.iter().map(|p| *p + 0.1 * rng.vec3()).collect();
-        let diag = bbox_diagonal(&fine);
+        let diag = crate::mesh::diagonal_of(&fine);
         for degree in Degree::ALL {
             for boundary in BOUNDARIES {
                 let w = BSplineWavelet { degree, boundary };
@@ -860,7 +852,7 @@ fn optimized_passes_match_reference() {
         let levels = &r.topologies;
         let mut rng = Rng(7);
         let fine: Vec<DVec3> = r.positions.iter().map(|p| *p + 0.05 * rng.vec3()).collect();
-        let scale = bbox_diagonal(&fine);
+        let scale = crate::mesh::diagonal_of(&fine);
         let sizes = level_sizes(levels).unwrap();
         for boundary in BOUNDARIES {
             for degree in Degree::ALL {
