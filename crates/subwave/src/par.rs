@@ -27,7 +27,29 @@ where
 {
     assert!(chunk > 0, "par_vec: chunk must be positive");
     let mut out = Vec::with_capacity(n);
-    out.spare_capacity_mut()[..n]
+    par_fill(&mut out.spare_capacity_mut()[..n], chunk, init, f);
+    // SAFETY: `par_fill` wrote each of the first `n` slots; a panic in it propagates before
+    // this line, leaving the vector empty.
+    unsafe { out.set_len(n) };
+    out
+}
+
+/// Writes `f(&mut state, k)` into slot `k` of `slots`, in parallel chunks of `chunk` slots,
+/// each task with its own `state` from `init`. Every slot is written when it returns.
+///
+/// # Panics
+/// If `chunk` is 0, or if `f` panics (the panic propagates; slots already written are not
+/// dropped).
+pub(crate) fn par_fill<T, S>(
+    slots: &mut [std::mem::MaybeUninit<T>],
+    chunk: usize,
+    init: impl Fn() -> S + Sync + Send,
+    f: impl Fn(&mut S, usize) -> T + Sync + Send,
+) where
+    T: Send,
+{
+    assert!(chunk > 0, "par_fill: chunk must be positive");
+    slots
         .par_chunks_mut(chunk)
         .enumerate()
         .for_each_init(init, |s, (c, slots)| {
@@ -36,8 +58,35 @@ where
                 slot.write(f(s, first + k));
             }
         });
-    // SAFETY: the chunks cover the first `n` slots and the loop wrote each of them; a panic
-    // above propagates before this line, leaving the vector empty.
+}
+
+/// `(0..n).map(..)` as a vector whose last `late` elements are computed first
+/// (`tail(&mut state, k)` for element `n - late + k`) and whose other elements may read them
+/// (`head(&mut state, j, tail)`), in parallel chunks of `chunk` elements.
+///
+/// # Panics
+/// If `late > n`, if `chunk` is 0, or if a closure panics (the panic propagates; nothing is
+/// leaked but the elements already computed, which are not dropped).
+pub(crate) fn par_vec_tail_first<T, S>(
+    n: usize,
+    late: usize,
+    chunk: usize,
+    init: impl Fn() -> S + Sync + Send,
+    tail: impl Fn(&mut S, usize) -> T + Sync + Send,
+    head: impl Fn(&mut S, usize, &[T]) -> T + Sync + Send,
+) -> Vec<T>
+where
+    T: Send + Sync,
+{
+    assert!(late <= n, "par_vec_tail_first: {late} late elements of {n}");
+    let mut out = Vec::with_capacity(n);
+    let (h, t) = out.spare_capacity_mut()[..n].split_at_mut(n - late);
+    par_fill(t, chunk, &init, tail);
+    // SAFETY: `par_fill` wrote every slot of `t` (a panic propagates before this line), and
+    // `MaybeUninit<T>` has the layout of `T`.
+    let t: &[T] = unsafe { std::slice::from_raw_parts(t.as_ptr().cast::<T>(), t.len()) };
+    par_fill(h, chunk, &init, |s, j| head(s, j, t));
+    // SAFETY: both fills wrote their slots, which cover the first `n`.
     unsafe { out.set_len(n) };
     out
 }
@@ -57,6 +106,34 @@ mod tests {
         }
         let strings = par_vec(10_000, 7, || (), |_, j| j.to_string());
         assert!(strings.iter().enumerate().all(|(j, s)| *s == j.to_string()));
+    }
+
+    #[test]
+    fn tail_first_reads_the_tail() {
+        for (n, late, chunk) in [(0, 0, 1), (5, 0, 2), (5, 5, 2), (10_003, 1_000, 97)] {
+            let v = super::par_vec_tail_first(
+                n,
+                late,
+                chunk,
+                || (),
+                |_, k| 2 * (n - late + k) as u64,
+                |_, j, tail: &[u64]| {
+                    assert_eq!(tail.len(), late);
+                    j as u64 + tail.first().copied().unwrap_or(0)
+                },
+            );
+            let first = if late > 0 { 2 * (n - late) as u64 } else { 0 };
+            let want: Vec<u64> = (0..n)
+                .map(|j| {
+                    if j >= n - late {
+                        2 * j as u64
+                    } else {
+                        j as u64 + first
+                    }
+                })
+                .collect();
+            assert_eq!(v, want, "{n} {late} {chunk}");
+        }
     }
 
     #[test]

@@ -301,6 +301,7 @@ fn scheme_tables(h: &Hierarchy, base: &Mesh, scheme: Scheme) -> Result<Refinemen
         && r.stencils.iter().enumerate().all(|(j, t)| {
             t.num_sources as usize == h.num_vertices(j)
                 && t.len() == h.num_vertices(j + 1)
+                && t.child_sources == 0
                 && t.indices.iter().all(|&k| k < t.num_sources)
         });
     if !ok {

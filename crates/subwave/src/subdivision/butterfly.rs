@@ -388,6 +388,7 @@ pub fn untagged_level_table(topo: &Topology) -> StencilTable {
     }
     StencilTable {
         num_sources: nv as u32,
+        child_sources: 0,
         offsets,
         indices,
         weights,

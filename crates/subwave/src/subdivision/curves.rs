@@ -132,6 +132,7 @@ impl SubdivisionCurve {
         let segs = self.num_segments();
         let mut t = StencilTable {
             num_sources: n as u32,
+            child_sources: 0,
             offsets: vec![0],
             indices: Vec::with_capacity(5 * n),
             weights: Vec::with_capacity(5 * n),
@@ -162,6 +163,7 @@ impl SubdivisionCurve {
         let n = self.points.len();
         let mut t = StencilTable {
             num_sources: n as u32,
+            child_sources: 0,
             offsets: vec![0],
             indices: Vec::with_capacity(3 * n),
             weights: Vec::with_capacity(3 * n),
@@ -228,6 +230,7 @@ impl SubdivisionCurve {
 fn identity(n: usize) -> StencilTable {
     StencilTable {
         num_sources: n as u32,
+        child_sources: 0,
         offsets: (0..=n as u32).collect(),
         indices: (0..n as u32).collect(),
         weights: vec![1.0; n],
@@ -239,6 +242,7 @@ fn identity(n: usize) -> StencilTable {
 fn compose(first: &StencilTable, then: &StencilTable) -> StencilTable {
     let mut out = StencilTable {
         num_sources: first.num_sources,
+        child_sources: 0,
         offsets: vec![0],
         indices: Vec::new(),
         weights: Vec::new(),

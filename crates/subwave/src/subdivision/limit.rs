@@ -598,6 +598,7 @@ fn build_tables(topo: &Topology, scheme: LimitScheme, tangents: bool) -> Result<
         let total: usize = parts.iter().map(|p| p.indices[k].len()).sum();
         let mut t = StencilTable {
             num_sources: nv as u32,
+            child_sources: 0,
             offsets: Vec::with_capacity(nv + 1),
             indices: Vec::with_capacity(total),
             weights: Vec::with_capacity(total),

@@ -394,6 +394,7 @@ impl<'a> Sqrt3Level<'a> {
         let total: usize = chunks.iter().map(|c| c.1.len()).sum();
         let mut table = StencilTable {
             num_sources: self.topo.num_vertices,
+            child_sources: 0,
             offsets: Vec::with_capacity(n + 1),
             indices: Vec::with_capacity(total),
             weights: Vec::with_capacity(total),

@@ -205,6 +205,7 @@ impl<'h> TriangleWavelet<'h> {
                 weights.resize((nv + 2 * ne) as usize, 0.5);
                 StencilTable {
                     num_sources: nv,
+                    child_sources: 0,
                     offsets,
                     indices,
                     weights,
@@ -220,8 +221,9 @@ impl<'h> TriangleWavelet<'h> {
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] if `h` is not a triangle hierarchy, the number or sizes of
-    /// the tables do not match the hierarchy, or an even row is not the identity (naming the
-    /// level and vertex).
+    /// the tables do not match the hierarchy, a table refers to its own children
+    /// ([`StencilTable::child_sources`] not 0), or an even row is not the identity (naming
+    /// the level and vertex).
     pub fn interpolating(
         h: &'h Hierarchy,
         tables: Vec<StencilTable>,
@@ -846,6 +848,14 @@ fn check_tables(h: &Hierarchy, tables: &[StencilTable]) -> Result<()> {
         )));
     }
     for (j, t) in tables.iter().enumerate() {
+        if t.child_sources != 0 {
+            return Err(Error::InvalidArgument(format!(
+                "level {j}: the stencil table refers to {} of its own children (a polygon \
+                 split's face points); the triangle wavelets take tables over the coarse \
+                 vertices only",
+                t.child_sources
+            )));
+        }
         if t.num_sources as usize != h.num_vertices(j) || t.len() != h.num_vertices(j + 1) {
             return Err(Error::InvalidArgument(format!(
                 "level {j}: the stencil table maps {} to {} vertices, the hierarchy {} to {}",
@@ -1624,6 +1634,7 @@ mod tests {
                 let nv = t.num_vertices;
                 let mut tab = StencilTable {
                     num_sources: nv,
+                    child_sources: 0,
                     offsets: vec![0],
                     ..Default::default()
                 };
@@ -1661,6 +1672,11 @@ mod tests {
         let lp = TriangleWavelet::loop_pgc(&h, &SubdivideOptions::default()).unwrap();
         let e = TriangleWavelet::interpolating(&h, lp.tables().to_vec(), false).unwrap_err();
         assert!(e.to_string().contains("not interpolating"), "{e}");
+        // A table that refers to its own children (a polygon split's) is refused.
+        let mut own = tables.clone();
+        own[0].child_sources = 1;
+        let e = TriangleWavelet::interpolating(&h, own, false).unwrap_err();
+        assert!(e.to_string().contains("its own children"), "{e}");
     }
 
     #[test]
