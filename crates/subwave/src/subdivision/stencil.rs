@@ -763,7 +763,7 @@ impl Level<'_> {
     /// [`Level::stencil`] on the parent values `src` and the trailing children's values
     /// `tail` ([`Level::child_sources`]; empty while they are computed); `None` where no
     /// recipe applies.
-    #[inline]
+    #[inline(always)]
     fn fast_value<T: Interpolate>(&self, j: usize, src: &[T], tail: &[T]) -> Option<T> {
         let topo = self.topo;
         let (nv, ne) = (self.nv, self.ne);
