@@ -229,6 +229,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
         opts.bits = 12;
     }
     opts.input_vertices = Some(input_vertices as u32);
+    opts.level_exponent = args.level_exponent;
     let t_code = Instant::now();
     let bytes = encode(&h, &opts).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let code_ms = t_code.elapsed().as_secs_f64() * 1e3;

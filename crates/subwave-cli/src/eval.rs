@@ -99,6 +99,7 @@ fn options(args: &EvalArgs, prep: &Prepared) -> EncodeOptions {
         o.max_rms = None;
     }
     o.lifted &= !args.unlifted;
+    o.level_exponent = args.level_exponent;
     o
 }
 

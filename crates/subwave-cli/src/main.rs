@@ -110,6 +110,11 @@ pub struct EvalArgs {
     /// Bit planes of the coefficient quantization (eq. 4.8; default as `encode`).
     #[arg(long, value_name = "B", value_parser = clap::value_parser!(u32).range(1..=30))]
     pub bits: Option<u32>,
+    /// Level weight of the lossy details: level j's details are weighted by 2^(-EXP*j) before
+    /// quantization, so that the bit planes follow the surface's squared error across levels
+    /// (0: every level alike; a multiple of 0.25 up to 8).
+    #[arg(long, value_name = "EXP", default_value_t = 1.0, value_parser = parse_level_exponent)]
+    pub level_exponent: f64,
     /// Detail coordinates (triangle wavelets; default local).
     #[arg(long, value_enum)]
     pub frames: Option<encode::FramesArg>,
@@ -163,6 +168,11 @@ pub struct EncodeArgs {
     /// remesh's own distance), or with --lossless the bits of the position grid (default 12).
     #[arg(long, value_name = "B", value_parser = clap::value_parser!(u32).range(1..=30))]
     pub bits: Option<u32>,
+    /// Level weight of the lossy details: level j's details are weighted by 2^(-EXP*j) before
+    /// quantization, so that the bit planes follow the surface's squared error across levels
+    /// (0: every level alike; a multiple of 0.25 up to 8).
+    #[arg(long, value_name = "EXP", default_value_t = 1.0, value_parser = parse_level_exponent)]
+    pub level_exponent: f64,
     /// Detail coordinates (triangle wavelets; default local).
     #[arg(long, value_enum)]
     pub frames: Option<encode::FramesArg>,
@@ -449,6 +459,16 @@ pub struct DemoArgs {
     #[arg(long, value_name = "N", default_value_t = 4,
           value_parser = clap::value_parser!(u32).range(0..=8))]
     pub levels: u32,
+}
+/// A level exponent: a multiple of 0.25 in 0..=8.
+fn parse_level_exponent(s: &str) -> Result<f64, String> {
+    let x: f64 = s.parse().map_err(|e| format!("{s}: {e}"))?;
+    let q = x * 4.0;
+    if (0.0..=32.0).contains(&q) && q.fract() == 0.0 {
+        Ok(x)
+    } else {
+        Err(format!("{s}: use a multiple of 0.25 between 0 and 8"))
+    }
 }
 
 /// Parses a format name for clap; the message lists the valid names.

@@ -777,3 +777,122 @@ fn lossless_open_meshes_and_base_only_hierarchies_are_exact() {
         assert_eq!(d.mesh.num_faces(), h.topology(h.levels()).num_faces());
     }
 }
+
+/// The level weight (`EncodeOptions::level_exponent`): with details of about the same size
+/// at every level (a noisy surface), weighing level `j` by `2^-j` spends the first bytes on
+/// the coarse details, whose basis functions cover more surface, so a prefix is closer to
+/// the mesh than the same prefix of an unweighted stream; the full streams both reach the
+/// quantization error. Out-of-range exponents are refused.
+#[test]
+fn level_weight_spends_the_first_bytes_on_coarse_details() {
+    let h0 = bumpy(4);
+    let mut x = 12345u64;
+    let positions: Vec<DVec3> = h0
+        .positions
+        .iter()
+        .map(|&p| {
+            let mut r = || {
+                x = x
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (x >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            };
+            p + 0.004 * DVec3::new(r(), r(), r())
+        })
+        .collect();
+    let h = Hierarchy::new(
+        &generate::icosahedron(),
+        4,
+        Split::Triangles,
+        Some(positions),
+    )
+    .unwrap();
+    let code = |level_exponent: f64| {
+        encode_with_info(
+            &h,
+            &EncodeOptions {
+                level_exponent,
+                bits: 12,
+                ..Default::default()
+            },
+        )
+        .unwrap()
+    };
+    let ((flat, hf), (weighted, hw)) = (code(0.0), code(1.0));
+    // The surface distance (area samples), which is what the weight is for: a vertex RMS
+    // counts the finest level's vertices three times over.
+    let target = h.level_mesh(4, h.positions.clone());
+    for share in [0.15, 0.3] {
+        let cut = (share * flat.len() as f64) as usize;
+        let at = |s: &[u8]| {
+            let m = decode(
+                s,
+                &DecodeOptions {
+                    max_bytes: Some(cut),
+                    ..Default::default()
+                },
+            )
+            .unwrap()
+            .mesh;
+            subwave::distance::distance(&m, &target, 20_000)
+                .unwrap()
+                .rms
+        };
+        let (ef, ew) = (at(&flat), at(&weighted));
+        assert!(ew < 0.9 * ef, "{cut} bytes: weighted {ew}, unweighted {ef}");
+    }
+    for (s, hs) in [(&flat, &hf), (&weighted, &hw)] {
+        assert!(max_err(&full(s).mesh.positions, &hs.positions) < 1e-2);
+    }
+    for bad in [-0.25, 0.3, 8.25, f64::NAN] {
+        let e = encode(
+            &h,
+            &EncodeOptions {
+                level_exponent: bad,
+                ..Default::default()
+            },
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("level exponent"), "{e}");
+    }
+}
+
+/// A header whose level weight is out of range (or set in a lossless stream) is refused by
+/// name, before any decoding.
+#[test]
+fn out_of_range_level_weights_are_refused() {
+    use subwave::codec::container;
+    let rewrite = |s: &[u8], weight: u8| {
+        let c = container::read(s).unwrap();
+        let mut header = c.header.clone();
+        header.level_weight = weight;
+        let chunks: Vec<_> = c
+            .chunks
+            .iter()
+            .map(|e| {
+                let data = s[e.offset as usize..e.offset as usize + e.len as usize].to_vec();
+                (e.kind, e.id, data, e.marks.clone())
+            })
+            .collect();
+        container::write(&header, &chunks).unwrap()
+    };
+    let lossy = golden_stream();
+    assert_eq!(container::read(&lossy).unwrap().header.level_weight, 4);
+    assert!(decode(&rewrite(&lossy, 32), &DecodeOptions::default()).is_ok());
+    let lossless = encode(
+        &bumpy(2),
+        &EncodeOptions {
+            lossless: true,
+            bits: 10,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(container::read(&lossless).unwrap().header.level_weight, 0);
+    for s in [rewrite(&lossy, 33), rewrite(&lossless, 4)] {
+        let e = decode(&s, &DecodeOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("level weight"), "{e}");
+    }
+}

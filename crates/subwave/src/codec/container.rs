@@ -40,7 +40,7 @@ use crate::{Error, Result};
 /// The magic bytes.
 pub const MAGIC: [u8; 4] = *b"SWAV";
 /// The format version (bumped on every format change; the golden-bytes test pins it).
-pub const VERSION: u16 = 6;
+pub const VERSION: u16 = 7;
 /// Bytes of the fixed header fields.
 pub const HEADER_FIELDS: usize = 16 + 8 * 13 + 4 * 4;
 /// Fewest bytes of a chunk index entry (kind, one-byte id, length and mark count, CRC).
@@ -127,8 +127,10 @@ pub struct Header {
     pub bits: u8,
     /// Bits of the base-mesh grid.
     pub base_bits: u8,
-    /// Reserved (0).
-    pub reserved: u8,
+    /// Level weight of the lossy details, in quarters of the exponent `α`: the details of
+    /// level `j` were multiplied by `2^(−α·j)` before quantization (0 in lossless streams;
+    /// see [`super::progressive::EncodeOptions::level_exponent`]). Version 7.
+    pub level_weight: u8,
     /// Top bit plane per component (−1: all zero).
     pub top: [i8; 3],
     /// Reserved (0).
@@ -240,7 +242,7 @@ impl Header {
             self.levels,
             self.bits,
             self.base_bits,
-            self.reserved,
+            self.level_weight,
         ]);
         out.extend(self.top.iter().map(|&t| t as u8));
         out.push(self.reserved2);
@@ -282,7 +284,7 @@ impl Header {
             levels: b[4],
             bits: b[5],
             base_bits: b[6],
-            reserved: b[7],
+            level_weight: b[7],
             top: [b[8] as i8, b[9] as i8, b[10] as i8],
             reserved2: b[11],
             input_vertices: u32::from_le_bytes([b[12], b[13], b[14], b[15]]),
@@ -582,7 +584,7 @@ mod tests {
             levels: 3,
             bits: 12,
             base_bits: 16,
-            reserved: 0,
+            level_weight: 0,
             top: [11, 9, -1],
             reserved2: 0,
             input_vertices: 42,
