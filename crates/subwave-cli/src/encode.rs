@@ -230,6 +230,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     }
     opts.input_vertices = Some(input_vertices as u32);
     opts.level_exponent = args.level_exponent;
+    opts.tangent_shift = args.tangent_shift;
     let t_code = Instant::now();
     let bytes = encode(&h, &opts).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let code_ms = t_code.elapsed().as_secs_f64() * 1e3;

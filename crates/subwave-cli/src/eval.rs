@@ -100,6 +100,7 @@ fn options(args: &EvalArgs, prep: &Prepared) -> EncodeOptions {
     }
     o.lifted &= !args.unlifted;
     o.level_exponent = args.level_exponent;
+    o.tangent_shift = args.tangent_shift;
     o
 }
 

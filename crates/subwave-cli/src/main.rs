@@ -115,6 +115,10 @@ pub struct EvalArgs {
     /// (0: every level alike; a multiple of 0.25 up to 8).
     #[arg(long, value_name = "EXP", default_value_t = 1.0, value_parser = parse_level_exponent)]
     pub level_exponent: f64,
+    /// Lossy, local frames: the tangential components of the details are weighted by 2^-K
+    /// (sent K bit planes after the normal ones; they move the surface little).
+    #[arg(long, value_name = "K", default_value_t = 2, value_parser = clap::value_parser!(u32).range(0..=8))]
+    pub tangent_shift: u32,
     /// Detail coordinates (triangle wavelets; default local).
     #[arg(long, value_enum)]
     pub frames: Option<encode::FramesArg>,
@@ -173,6 +177,10 @@ pub struct EncodeArgs {
     /// (0: every level alike; a multiple of 0.25 up to 8).
     #[arg(long, value_name = "EXP", default_value_t = 1.0, value_parser = parse_level_exponent)]
     pub level_exponent: f64,
+    /// Lossy, local frames: the tangential components of the details are weighted by 2^-K
+    /// (sent K bit planes after the normal ones; they move the surface little).
+    #[arg(long, value_name = "K", default_value_t = 2, value_parser = clap::value_parser!(u32).range(0..=8))]
+    pub tangent_shift: u32,
     /// Detail coordinates (triangle wavelets; default local).
     #[arg(long, value_enum)]
     pub frames: Option<encode::FramesArg>,

@@ -896,3 +896,113 @@ fn out_of_range_level_weights_are_refused() {
         assert!(e.contains("level weight"), "{e}");
     }
 }
+
+/// The tangential shift (`EncodeOptions::tangent_shift`): details that are mostly tangential
+/// (vertices slid along the surface) cost bits that barely move the surface, so sending them
+/// two planes later leaves a prefix closer to the surface; the full streams both reach the
+/// quantization error, and a shift out of range (or on global frames, in a stream) is
+/// refused.
+#[test]
+fn tangent_shift_spends_the_first_bytes_on_normal_components() {
+    use subwave::codec::container;
+    let h0 = bumpy(4);
+    let mut x = 777u64;
+    // Slide every vertex along the sphere (a tangential perturbation), plus small normal noise.
+    let positions: Vec<DVec3> = h0
+        .positions
+        .iter()
+        .map(|&p| {
+            let mut r = || {
+                x = x
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (x >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            };
+            let n = p.normalize();
+            let t = n.any_orthonormal_vector();
+            let b = n.cross(t);
+            p + 0.01 * (r() * t + r() * b) + 0.001 * r() * n
+        })
+        .collect();
+    let h = Hierarchy::new(
+        &generate::icosahedron(),
+        4,
+        Split::Triangles,
+        Some(positions),
+    )
+    .unwrap();
+    let code = |tangent_shift: u32| {
+        encode_with_info(
+            &h,
+            &EncodeOptions {
+                tangent_shift,
+                bits: 12,
+                ..Default::default()
+            },
+        )
+        .unwrap()
+    };
+    let ((plain, hp), (shifted, hs)) = (code(0), code(2));
+    assert_eq!(container::read(&shifted).unwrap().header.tangent_shift, 2);
+    let target = h.level_mesh(4, h.positions.clone());
+    for share in [0.2, 0.4] {
+        let cut = (share * plain.len() as f64) as usize;
+        let at = |s: &[u8]| {
+            let m = decode(
+                s,
+                &DecodeOptions {
+                    max_bytes: Some(cut),
+                    ..Default::default()
+                },
+            )
+            .unwrap()
+            .mesh;
+            subwave::distance::distance(&m, &target, 20_000)
+                .unwrap()
+                .rms
+        };
+        let (ep, es) = (at(&plain), at(&shifted));
+        assert!(es < 0.9 * ep, "{cut} bytes: shifted {es}, plain {ep}");
+    }
+    for (s, hx) in [(&plain, &hp), (&shifted, &hs)] {
+        assert!(max_err(&full(s).mesh.positions, &hx.positions) < 1e-2);
+    }
+    let e = encode(
+        &h,
+        &EncodeOptions {
+            tangent_shift: 9,
+            ..Default::default()
+        },
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("tangent shift"), "{e}");
+    // Global frames have no tangential components: the shift is not applied (0 in the header).
+    let global = encode(
+        &h,
+        &EncodeOptions {
+            frames: DetailFrame::Global,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(container::read(&global).unwrap().header.tangent_shift, 0);
+    // A stream claiming a shift on global frames, or beyond the largest, is refused.
+    for (s, k) in [(&global, 2u8), (&shifted, 9u8)] {
+        let c = container::read(s).unwrap();
+        let mut header = c.header.clone();
+        header.tangent_shift = k;
+        let chunks: Vec<_> = c
+            .chunks
+            .iter()
+            .map(|e| {
+                let data = s[e.offset as usize..e.offset as usize + e.len as usize].to_vec();
+                (e.kind, e.id, data, e.marks.clone())
+            })
+            .collect();
+        let bad = container::write(&header, &chunks).unwrap();
+        let e = decode(&bad, &DecodeOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("tangent shift"), "{e}");
+    }
+}

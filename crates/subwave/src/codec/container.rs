@@ -133,8 +133,11 @@ pub struct Header {
     pub level_weight: u8,
     /// Top bit plane per component (−1: all zero).
     pub top: [i8; 3],
-    /// Reserved (0).
-    pub reserved2: u8,
+    /// Tangential shift `k` of lossy local-frame details: their two tangential components
+    /// were multiplied by `2^(−k)` (on top of the level weight) before quantization (0 with
+    /// global frames and in lossless streams; see
+    /// [`super::progressive::EncodeOptions::tangent_shift`]). Version 7.
+    pub tangent_shift: u8,
     /// Vertices of the mesh the stream stands for (the input before remeshing), for rates
     /// in bits per input vertex.
     pub input_vertices: u32,
@@ -245,7 +248,7 @@ impl Header {
             self.level_weight,
         ]);
         out.extend(self.top.iter().map(|&t| t as u8));
-        out.push(self.reserved2);
+        out.push(self.tangent_shift);
         out.extend_from_slice(&self.input_vertices.to_le_bytes());
         for p in self.bbox {
             for c in 0..3 {
@@ -286,7 +289,7 @@ impl Header {
             base_bits: b[6],
             level_weight: b[7],
             top: [b[8] as i8, b[9] as i8, b[10] as i8],
-            reserved2: b[11],
+            tangent_shift: b[11],
             input_vertices: u32::from_le_bytes([b[12], b[13], b[14], b[15]]),
             bbox,
             steps,
@@ -586,7 +589,7 @@ mod tests {
             base_bits: 16,
             level_weight: 0,
             top: [11, 9, -1],
-            reserved2: 0,
+            tangent_shift: 0,
             input_vertices: 42,
             bbox: [DVec3::ZERO, DVec3::ONE],
             steps: [0.5, 0.25, 1.0],
