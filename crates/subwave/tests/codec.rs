@@ -579,6 +579,24 @@ fn lossless_quad_streams_are_exact() {
     }
 }
 
+/// Rewrites a stream with its header fields changed by `edit` (valid checksums), so that the
+/// decoder's header checks (not the CRC) meet the change.
+fn with_header(s: &[u8], edit: impl Fn(&mut subwave::codec::container::Header)) -> Vec<u8> {
+    use subwave::codec::container;
+    let c = container::read(s).unwrap();
+    let mut header = c.header.clone();
+    edit(&mut header);
+    let chunks: Vec<_> = c
+        .chunks
+        .iter()
+        .map(|e| {
+            let data = s[e.offset as usize..e.offset as usize + e.len as usize].to_vec();
+            (e.kind, e.id, data, e.marks.clone())
+        })
+        .collect();
+    container::write(&header, &chunks).unwrap()
+}
+
 /// Rewrites a stream with chunk `i`'s byte `k` flipped and valid checksums, so that the
 /// decoder itself (not the CRC) meets the corrupt data.
 fn corrupt_behind_crc(s: &[u8], i: usize, k: usize, flip: u8) -> Vec<u8> {
@@ -862,20 +880,7 @@ fn level_weight_spends_the_first_bytes_on_coarse_details() {
 #[test]
 fn out_of_range_level_weights_are_refused() {
     use subwave::codec::container;
-    let rewrite = |s: &[u8], weight: u8| {
-        let c = container::read(s).unwrap();
-        let mut header = c.header.clone();
-        header.level_weight = weight;
-        let chunks: Vec<_> = c
-            .chunks
-            .iter()
-            .map(|e| {
-                let data = s[e.offset as usize..e.offset as usize + e.len as usize].to_vec();
-                (e.kind, e.id, data, e.marks.clone())
-            })
-            .collect();
-        container::write(&header, &chunks).unwrap()
-    };
+    let rewrite = |s: &[u8], weight: u8| with_header(s, |h| h.level_weight = weight);
     let lossy = golden_stream();
     assert_eq!(container::read(&lossy).unwrap().header.level_weight, 4);
     assert!(decode(&rewrite(&lossy, 32), &DecodeOptions::default()).is_ok());
@@ -988,18 +993,7 @@ fn tangent_shift_spends_the_first_bytes_on_normal_components() {
     assert_eq!(container::read(&global).unwrap().header.tangent_shift, 0);
     // A stream claiming a shift on global frames, or beyond the largest, is refused.
     for (s, k) in [(&global, 2u8), (&shifted, 9u8)] {
-        let c = container::read(s).unwrap();
-        let mut header = c.header.clone();
-        header.tangent_shift = k;
-        let chunks: Vec<_> = c
-            .chunks
-            .iter()
-            .map(|e| {
-                let data = s[e.offset as usize..e.offset as usize + e.len as usize].to_vec();
-                (e.kind, e.id, data, e.marks.clone())
-            })
-            .collect();
-        let bad = container::write(&header, &chunks).unwrap();
+        let bad = with_header(s, |h| h.tangent_shift = k);
         let e = decode(&bad, &DecodeOptions::default())
             .unwrap_err()
             .to_string();

@@ -24,9 +24,8 @@
 //! function's squared L2 norm). Each detail of level `j` is therefore multiplied by
 //! `2^(−α·j)` before quantization and divided back when decoded
 //! ([`EncodeOptions::level_exponent`], `α = 1` by default, stored in the header in
-//! quarters): a bit plane then
-//! reduces the surface error about equally at every level, and the coarse details are sent
-//! first. (Maret's eqs. 4.7-4.9 weigh every level alike, `α = 0`.) Measured with `subwave
+//! quarters): a bit plane then reduces the surface error about equally at every level, and
+//! the coarse details are sent first. (Maret's eqs. 4.7-4.9 weigh every level alike, `α = 0`.) Measured with `subwave
 //! eval`, bits per input vertex at equal PSNR against Draco 1.5 (cl 10) for `α` = 0 → 1:
 //! stanford-bunny 0.45 → 0.36 at 75 dB, 0.60 → 0.51 at 78 dB, 0.78 → 0.65 at 80 dB; fandisk
 //! 0.55 → 0.36 at 70 dB, 0.68 → 0.47 at 75 dB; rocker-arm 0.61 → 0.56 at 75 dB; a
@@ -248,7 +247,8 @@ pub struct EncodeOptions {
     /// over Draco's at equal PSNR, `subwave eval`, `k` = 0 → 2): fandisk 0.36 → 0.26 at 70 dB
     /// and 0.72 → 0.48 at 80 dB; stanford-bunny 0.27 → 0.23 at 70 dB, 0.51 → 0.46 at 78 dB;
     /// rocker-arm 0.56 → 0.52 at 75 dB. Ignored with global frames (quad wavelets) and in
-    /// lossless mode.
+    /// lossless mode; no effect with [`ComponentMode::Independent`], whose three steps
+    /// follow each component's own largest detail.
     pub tangent_shift: u32,
 }
 
@@ -749,10 +749,11 @@ pub fn encode_with_info(h: &Hierarchy, opts: &EncodeOptions) -> Result<(Vec<u8>,
     Ok((container::write(&header, &chunks)?, stream_hierarchy))
 }
 
-/// The RMS error over the vertices of the full decode of `N = bits` planes: the details
-/// `flat[v0..]` (of `transform`, which analysed `reference`) quantized with the steps of
-/// eq. 4.8 and reconstructed at mid-interval (eqs. 4.11-4.12) as the decoder does, the
-/// coarse positions `flat[..v0]` exact, then synthesised.
+/// The RMS error over the vertices of the full decode of `N = bits` planes: the weighted
+/// details `weighted` (of `transform`, which analysed `reference`; node `n` of level
+/// `level[n]`, multiplied by `gains[level[n]]`, [`detail_scales`]) quantized with the steps
+/// of eq. 4.8, reconstructed at mid-interval (eqs. 4.11-4.12) and unweighted as the decoder
+/// does, the coarse positions `coarse` exact, then synthesised.
 fn quantization_rms(
     transform: &Transform,
     (coarse, weighted, level, gains): (&[DVec3], &[DVec3], &[u8], &[DVec3]),

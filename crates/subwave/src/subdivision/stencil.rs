@@ -163,6 +163,12 @@ impl StencilTable {
     pub fn apply_into<T: Interpolate>(&self, src: &[T], dst: &mut [T]) {
         assert_eq!(src.len(), self.num_sources as usize, "stencil source size");
         assert_eq!(dst.len(), self.len(), "stencil destination size");
+        assert!(
+            self.child_sources as usize <= self.len(),
+            "{} child sources of {} children",
+            self.child_sources,
+            self.len()
+        );
         let head = self.len() - self.child_sources as usize;
         let (h, t) = dst.split_at_mut(head);
         t.par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
