@@ -579,6 +579,21 @@ fn lossless_quad_streams_are_exact() {
     }
 }
 
+/// The surface (area-sampled) RMS distance from the decode of `s`'s first `cut` bytes to
+/// `target`.
+fn prefix_surface_rms(s: &[u8], cut: usize, target: &subwave::mesh::Mesh) -> f64 {
+    let m = decode(
+        s,
+        &DecodeOptions {
+            max_bytes: Some(cut),
+            ..Default::default()
+        },
+    )
+    .unwrap()
+    .mesh;
+    subwave::distance::distance(&m, target, 20_000).unwrap().rms
+}
+
 /// Rewrites a stream with its header fields changed by `edit` (valid checksums), so that the
 /// decoder's header checks (not the CRC) meet the change.
 fn with_header(s: &[u8], edit: impl Fn(&mut subwave::codec::container::Header)) -> Vec<u8> {
@@ -842,20 +857,7 @@ fn level_weight_spends_the_first_bytes_on_coarse_details() {
     let target = h.level_mesh(4, h.positions.clone());
     for share in [0.15, 0.3] {
         let cut = (share * flat.len() as f64) as usize;
-        let at = |s: &[u8]| {
-            let m = decode(
-                s,
-                &DecodeOptions {
-                    max_bytes: Some(cut),
-                    ..Default::default()
-                },
-            )
-            .unwrap()
-            .mesh;
-            subwave::distance::distance(&m, &target, 20_000)
-                .unwrap()
-                .rms
-        };
+        let at = |s: &[u8]| prefix_surface_rms(s, cut, &target);
         let (ef, ew) = (at(&flat), at(&weighted));
         assert!(ew < 0.9 * ef, "{cut} bytes: weighted {ew}, unweighted {ef}");
     }
@@ -952,20 +954,7 @@ fn tangent_shift_spends_the_first_bytes_on_normal_components() {
     let target = h.level_mesh(4, h.positions.clone());
     for share in [0.2, 0.4] {
         let cut = (share * plain.len() as f64) as usize;
-        let at = |s: &[u8]| {
-            let m = decode(
-                s,
-                &DecodeOptions {
-                    max_bytes: Some(cut),
-                    ..Default::default()
-                },
-            )
-            .unwrap()
-            .mesh;
-            subwave::distance::distance(&m, &target, 20_000)
-                .unwrap()
-                .rms
-        };
+        let at = |s: &[u8]| prefix_surface_rms(s, cut, &target);
         let (ep, es) = (at(&plain), at(&shifted));
         assert!(es < 0.9 * ep, "{cut} bytes: shifted {es}, plain {ep}");
     }

@@ -145,13 +145,7 @@ impl StencilTable {
         let (a, b) = (self.offsets[j] as usize, self.offsets[j + 1] as usize);
         let mut acc = T::zero();
         for (&i, &w) in self.indices[a..b].iter().zip(&self.weights[a..b]) {
-            let i = i as usize;
-            let x = if i < src.len() {
-                &src[i]
-            } else {
-                &tail[i - src.len()]
-            };
-            acc.add_scaled(x, w);
+            acc.add_scaled(source(src, tail, i), w);
         }
         acc
     }
@@ -189,6 +183,18 @@ impl StencilTable {
     /// Bytes of memory held by the table.
     pub fn memory_bytes(&self) -> usize {
         4 * self.offsets.len() + 4 * self.indices.len() + 8 * self.weights.len()
+    }
+}
+
+/// Stencil source `i`: parent value `src[i]`, or past the parents the trailing child
+/// `tail[i - src.len()]` ([`StencilTable::child_sources`]).
+#[inline(always)]
+fn source<'a, T>(src: &'a [T], tail: &'a [T], i: u32) -> &'a T {
+    let i = i as usize;
+    if i < src.len() {
+        &src[i]
+    } else {
+        &tail[i - src.len()]
     }
 }
 
@@ -248,13 +254,7 @@ impl Builder {
     fn eval<T: Interpolate>(&self, src: &[T], tail: &[T]) -> T {
         let mut acc = T::zero();
         for (&i, &w) in self.idx.iter().zip(&self.w) {
-            let i = i as usize;
-            let x = if i < src.len() {
-                &src[i]
-            } else {
-                &tail[i - src.len()]
-            };
-            acc.add_scaled(x, w);
+            acc.add_scaled(source(src, tail, i), w);
         }
         acc
     }
