@@ -17,6 +17,13 @@
 //! subdivision connectivity is untouched; pinned vertices (on boundary and feature chains)
 //! stay on their curves.
 //!
+//! Where the input turns sharply within one star (a hole rim that rolls over), the kernel in
+//! one tangent plane can be empty although a fold-free position exists on the surface; the
+//! last stage searches each remaining bad face's free vertices over points of the input
+//! towards their ring (its centroid, neighbours and midpoints of consecutive neighbours),
+//! measured exactly as the final counts are and kept under the same guards (bunny at 5
+//! levels: its last flipped face of 204,800; suzanne 29 to 14, cow 45 to 23).
+//!
 //! Faces whose centroid lies farther than a tolerance off the input are repaired too (with
 //! the same disc re-embeddings): where the parameterization's images overlap, a patch of
 //! faces can be stretched across the input, each face neither flipped nor thin but
@@ -269,6 +276,28 @@ pub fn repair_folds(
             break;
         }
     }
+    // What neither the kernel moves nor the re-embeddings opened: single-vertex moves
+    // searched over sample points of each star.
+    if !bad.is_empty() {
+        let before = bad.len();
+        bad = search_rounds(
+            pos,
+            hints,
+            topo,
+            fixed,
+            proj,
+            bad,
+            &mut origin,
+            &mut out.moves,
+            off,
+        );
+        tracing::debug!(
+            ms = t0.elapsed().as_secs_f64() * 1e3,
+            before,
+            after = bad.len(),
+            "fold repair: star search"
+        );
+    }
     refresh(&mut state, &mut last, topo, pos, hints, proj);
     let (flipped_after, degenerate_after) = counts(&state);
     tracing::debug!(ms = t0.elapsed().as_secs_f64() * 1e3, "fold repair: done");
@@ -382,6 +411,141 @@ fn vertex_rounds(
             break;
         }
         prev = bad.len();
+    }
+    bad
+}
+
+/// Rounds of [`search_rounds`] at most.
+const SEARCH_ROUNDS: usize = 4;
+
+/// Fractions of the way from a vertex (or its ring's centroid) to each sample point of its
+/// ring tried by [`search_rounds`].
+const SEARCH_STEPS: [f64; 3] = [0.2, 0.4, 0.6];
+
+/// Last-resort single-vertex moves for the `bad` faces left by the kernel moves and the
+/// re-embeddings. The kernel of [`vertex_rounds`] lives in one tangent plane, which fails
+/// where the input turns sharply within a star (a hole rim that rolls over: the bunny's last
+/// flipped face at 5 levels stood across one, perpendicular to the surface). Here each free
+/// vertex of a bad face tries points on the input towards its ring's centroid, its
+/// neighbours and the midpoints of consecutive neighbours (from the vertex and from the
+/// centroid, [`SEARCH_STEPS`] of the way), each measured by the faces of its star exactly
+/// as the final counts measure them; the best is kept under the same guards as the kernel
+/// moves (fewer flipped faces, or as many and a larger smallest angle; a short projection;
+/// within a ring of where the repair first met the vertex; faces not pulled off the input).
+/// The region grows by one ring per round. Returns the bad faces left.
+#[allow(clippy::too_many_arguments)]
+fn search_rounds(
+    pos: &mut [DVec3],
+    hints: &mut [u32],
+    topo: &Topology,
+    fixed: &[bool],
+    proj: &Projector,
+    mut bad: Vec<u32>,
+    origin: &mut [Option<(DVec3, f64)>],
+    moves: &mut usize,
+    off: f64,
+) -> Vec<u32> {
+    let mean_edge = |v: usize, pos: &[DVec3]| {
+        let edges = topo.vertex_edges(v);
+        edges
+            .iter()
+            .map(|&e| pos[topo.other_vertex(e as usize, v as u32) as usize].distance(pos[v]))
+            .sum::<f64>()
+            / edges.len().max(1) as f64
+    };
+    let mut targets = Vec::new();
+    for round in 0..SEARCH_ROUNDS {
+        if bad.is_empty() {
+            break;
+        }
+        let region = face_region(
+            topo,
+            pos.len(),
+            bad.iter().map(|&f| f as usize),
+            round.min(3),
+        );
+        let verts: Vec<usize> = (0..pos.len())
+            .filter(|&v| region[v] && !fixed[v] && !topo.vertex_edges(v).is_empty())
+            .collect();
+        let mut round_moves = 0;
+        for &v in &verts {
+            let now = flips_around(v, pos[v], hints[v], topo, pos, hints, proj);
+            if now.0 == 0 && now.1 >= BAD_ANGLE {
+                continue;
+            }
+            let p0 = pos[v];
+            let (o, reach0) = *origin[v].get_or_insert_with(|| (p0, mean_edge(v, pos)));
+            let reach = mean_edge(v, pos);
+            let ring: Vec<DVec3> = topo
+                .vertex_edges(v)
+                .iter()
+                .map(|&e| pos[topo.other_vertex(e as usize, v as u32) as usize])
+                .collect();
+            let centroid = ring.iter().sum::<DVec3>() / ring.len() as f64;
+            targets.clear();
+            targets.push(centroid);
+            for (i, &u) in ring.iter().enumerate() {
+                let mid = (u + ring[(i + 1) % ring.len()]) * 0.5;
+                for &t in &SEARCH_STEPS {
+                    for from in [p0, centroid] {
+                        targets.push(from.lerp(u, t));
+                        targets.push(from.lerp(mid, t));
+                    }
+                }
+            }
+            for t in SEARCH_STEPS {
+                targets.push(p0.lerp(centroid, t));
+            }
+            let mut best: Option<(DVec3, u32, (usize, f64, f64))> = None;
+            for &target in &targets {
+                let (q, tri) = proj.closest_near(target, &[hints[v]]);
+                if q.distance(target) > 0.25 * reach || q.distance(o) > reach0 {
+                    continue;
+                }
+                let new = flips_around(v, q, tri, topo, pos, hints, proj);
+                if new.2 > now.2.max(0.05 * reach) {
+                    continue;
+                }
+                let cur = best.map_or(now, |b| b.2);
+                if new.0 < cur.0 || (new.0 == cur.0 && new.1 > cur.1) {
+                    best = Some((q, tri, new));
+                }
+            }
+            if let Some((q, tri, _)) = best {
+                pos[v] = q;
+                hints[v] = tri;
+                *moves += 1;
+                round_moves += 1;
+            }
+        }
+        let mut faces: Vec<u32> = verts
+            .iter()
+            .flat_map(|&v| topo.vertex_faces(v).iter().copied())
+            .collect();
+        faces.extend_from_slice(&bad);
+        faces.sort_unstable();
+        faces.dedup();
+        let cur: &[DVec3] = pos;
+        let hint: &[u32] = hints;
+        bad = faces
+            .into_par_iter()
+            .filter(|&f| {
+                bad_face(
+                    topo.face_vertices(f as usize),
+                    cur,
+                    hint,
+                    proj,
+                    BAD_ANGLE,
+                    off,
+                )
+            })
+            .collect();
+        tracing::debug!(
+            round,
+            bad = bad.len(),
+            moves = round_moves,
+            "fold repair: star search"
+        );
     }
     bad
 }
@@ -901,4 +1065,124 @@ pub fn kernel_centre(
         .collect();
     let best = chebyshev_centre(&mut cons, centre, radius);
     best.map(|(x, r)| (p + e1 * x.x + e2 * x.y, r, margin))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::generate::icosphere;
+    use crate::mesh::Mesh;
+
+    /// The bad faces of `pos` among all faces (as [`bad_face`] with [`BAD_ANGLE`]).
+    fn all_bad(topo: &Topology, pos: &[DVec3], hints: &[u32], proj: &Projector) -> Vec<u32> {
+        (0..topo.num_faces() as u32)
+            .filter(|&f| {
+                let fv = topo.face_vertices(f as usize);
+                bad_face(fv, pos, hints, proj, BAD_ANGLE, f64::INFINITY)
+            })
+            .collect()
+    }
+
+    /// The star search alone (no kernel move, no re-embedding) opens folds made by pushing
+    /// vertices of a sphere's mesh past a neighbour: each pushed vertex is walked back onto
+    /// the input, towards its ring, until no face of its star is turned over or thin; every
+    /// other vertex stays, and every vertex stays on the input.
+    #[test]
+    fn star_search_opens_pushed_folds() {
+        let input = icosphere(5);
+        let tris: Vec<[u32; 3]> = input.faces().map(|f| [f[0], f[1], f[2]]).collect();
+        let proj = Projector::new(&input.positions, &tris).unwrap();
+        let coarse: Mesh = icosphere(3);
+        let topo = Topology::build(&coarse);
+        let mut pos: Vec<DVec3> = coarse
+            .positions
+            .iter()
+            .map(|&p| proj.closest(p).0)
+            .collect();
+        let mut hints: Vec<u32> = pos.iter().map(|&p| proj.closest(p).1).collect();
+        assert!(all_bad(&topo, &pos, &hints, &proj).is_empty());
+        let mut pushed = Vec::new();
+        for v in (0..pos.len()).step_by(101) {
+            let e = topo.vertex_edges(v)[0];
+            let w = topo.other_vertex(e as usize, v as u32) as usize;
+            let (q, t) = proj.closest(pos[w] + 0.3 * (pos[w] - pos[v]));
+            pos[v] = q;
+            hints[v] = t;
+            pushed.push(v);
+        }
+        let bad = all_bad(&topo, &pos, &hints, &proj);
+        assert!(bad.len() >= 2 * pushed.len(), "{} bad faces", bad.len());
+        let before = pos.clone();
+        let fixed = vec![false; pos.len()];
+        let mut origin = vec![None; pos.len()];
+        let mut moves = 0;
+        let left = search_rounds(
+            &mut pos,
+            &mut hints,
+            &topo,
+            &fixed,
+            &proj,
+            bad,
+            &mut origin,
+            &mut moves,
+            f64::INFINITY,
+        );
+        assert!(left.is_empty(), "{} bad faces left", left.len());
+        assert!(all_bad(&topo, &pos, &hints, &proj).is_empty());
+        assert!(moves >= pushed.len(), "{moves} moves");
+        for v in 0..pos.len() {
+            assert!(proj.closest(pos[v]).0.distance(pos[v]) < 1e-9, "vertex {v}");
+            let near = pushed.iter().any(|&p| {
+                p == v
+                    || topo
+                        .vertex_edges(p)
+                        .iter()
+                        .any(|&e| topo.other_vertex(e as usize, p as u32) as usize == v)
+            });
+            if !near {
+                assert_eq!(pos[v], before[v], "vertex {v} moved");
+            }
+        }
+    }
+
+    /// With a fixed pushed vertex the search cannot open its fold by moving it; it leaves
+    /// the fold (or opens it by moving the ring) and never moves the fixed vertex.
+    #[test]
+    fn star_search_keeps_fixed_vertices() {
+        let input = icosphere(5);
+        let tris: Vec<[u32; 3]> = input.faces().map(|f| [f[0], f[1], f[2]]).collect();
+        let proj = Projector::new(&input.positions, &tris).unwrap();
+        let coarse = icosphere(3);
+        let topo = Topology::build(&coarse);
+        let mut pos: Vec<DVec3> = coarse
+            .positions
+            .iter()
+            .map(|&p| proj.closest(p).0)
+            .collect();
+        let mut hints: Vec<u32> = pos.iter().map(|&p| proj.closest(p).1).collect();
+        let v = 7;
+        let e = topo.vertex_edges(v)[0];
+        let w = topo.other_vertex(e as usize, v as u32) as usize;
+        let (q, t) = proj.closest(pos[w] + 0.3 * (pos[w] - pos[v]));
+        pos[v] = q;
+        hints[v] = t;
+        let mut fixed = vec![false; pos.len()];
+        fixed[v] = true;
+        let bad = all_bad(&topo, &pos, &hints, &proj);
+        let mut origin = vec![None; pos.len()];
+        let mut moves = 0;
+        let left = search_rounds(
+            &mut pos,
+            &mut hints,
+            &topo,
+            &fixed,
+            &proj,
+            bad,
+            &mut origin,
+            &mut moves,
+            f64::INFINITY,
+        );
+        assert_eq!(pos[v], q);
+        assert_eq!(left, all_bad(&topo, &pos, &hints, &proj));
+    }
 }

@@ -21,7 +21,8 @@
 //!    then [`fold_repair`] moves the vertices of faces still flipped against the input or
 //!    degenerate into the kernels of their stars (re-embedding discs where single moves
 //!    do not suffice: as a membrane, or by Tutte's embedding in a flattening of the input
-//!    under them, `flatten`), positions only;
+//!    under them, `flatten`; last, single moves searched over points of the input around
+//!    each star), positions only;
 //! 5. [`shrinkwrap`]: the fallback (Kobbelt et al. 1999, as Bertram §5.3) for genus-0
 //!    inputs when the parameterization fails;
 //! 6. [`quality`]: angles, flipped and degenerate faces.
