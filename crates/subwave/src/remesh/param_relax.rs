@@ -143,8 +143,12 @@ pub fn relaxed_params(
                 .par_iter()
                 .map(|p| map.point(&map.locate(p)).unwrap_or(DVec3::NAN))
                 .collect();
+            // Vertices by base triangle, so that each thread's point locations stay in a
+            // few triangles' images (a visiting order only: the steps are Jacobi steps).
+            let mut order: Vec<u32> = (0..next.len() as u32).collect();
+            order.par_sort_by_key(|&v| next[v as usize].face);
             for _ in 0..steps {
-                step(&mut next, &mut images, topo, map, &fixed, chains);
+                step(&mut next, &mut images, topo, map, &fixed, chains, &order);
             }
         }
         params = next;
@@ -161,7 +165,8 @@ fn upright(old: [DVec3; 3], new: [DVec3; 3]) -> bool {
     n1.dot(n0) > 0.1 * n1.length() * n0.length()
 }
 
-/// One Jacobi step of the area-weighted parameter relaxation over `topo`'s vertices.
+/// One Jacobi step of the area-weighted parameter relaxation over `topo`'s vertices,
+/// visited in `order` (a permutation of them; the result does not depend on it).
 /// `images[v]` is the input point of `params[v]` (updated with the moves).
 fn step(
     params: &mut [Param],
@@ -170,12 +175,14 @@ fn step(
     map: &ParamMap,
     fixed: &[bool],
     chains: &PairSet,
+    order: &[u32],
 ) {
     let base_tris = map.base_triangles();
     let cur: &[Param] = params;
-    let moved: Vec<Option<(Param, DVec3)>> = (0..cur.len())
-        .into_par_iter()
-        .map(|v| {
+    let moves: Vec<Option<(Param, DVec3)>> = order
+        .par_iter()
+        .map(|&v| {
+            let v = v as usize;
             if fixed[v] {
                 return None;
             }
@@ -271,10 +278,10 @@ fn step(
         .collect();
     let mut next: Vec<Param> = params.to_vec();
     let mut next_images = images.to_vec();
-    for (v, m) in moved.iter().enumerate() {
+    for (&v, m) in order.iter().zip(&moves) {
         if let Some((p, x)) = m {
-            next[v] = *p;
-            next_images[v] = *x;
+            next[v as usize] = *p;
+            next_images[v as usize] = *x;
         }
     }
     // Simultaneous moves of neighbours can still turn a face over: undo the moves of its
