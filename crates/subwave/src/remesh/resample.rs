@@ -222,7 +222,14 @@ impl Projector {
         if !d2.is_finite() {
             return self.closest(p);
         }
-        match self.search(p, d2) {
+        // Only a part of the input closer by more than the tolerance leaves the sheet: none
+        // can be when the sheet is that close (most queries, from points just moved along
+        // the surface), and the search need not look farther than that.
+        let reach = d2.sqrt() - self.sheet_tolerance;
+        if reach <= 0.0 {
+            return (q, t);
+        }
+        match self.search(p, reach * reach) {
             Some((qs, ds, ts)) if d2.sqrt() - ds.sqrt() > self.sheet_tolerance => (qs, ts),
             _ => (q, t),
         }
