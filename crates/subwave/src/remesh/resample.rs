@@ -196,7 +196,8 @@ impl Projector {
     /// rounding, except that the hinted sheet is kept (the local closest point reached by
     /// walking from the nearest hint, [`Projector::closest_local`]) when another part of
     /// the input is closer by less than [`SHEET_TOLERANCE`] of the input's diagonal: on
-    /// coincident sheets of opposite orientation, a point keeps the sheet it came from.
+    /// coincident sheets of opposite orientation, a point keeps the sheet it came from. So
+    /// the BVH is not searched at all when that local point is within the tolerance.
     pub fn closest_near(&self, p: DVec3, hints: &[u32]) -> (DVec3, u32) {
         let mut best: Option<(DVec3, f64, u32)> = None;
         for &t in hints {
