@@ -324,87 +324,29 @@ fn vertex_rounds(
     moves: &mut usize,
     off: f64,
 ) -> Vec<u32> {
-    // Where each vertex was, and its ring's mean edge length, when the repair first met it.
-    let mean_edge = |v: usize, pos: &[DVec3]| {
-        let edges = topo.vertex_edges(v);
-        edges
-            .iter()
-            .map(|&e| pos[topo.other_vertex(e as usize, v as u32) as usize].distance(pos[v]))
-            .sum::<f64>()
-            / edges.len().max(1) as f64
-    };
     let mut prev = usize::MAX;
     for round in 0..rounds {
         if bad.is_empty() {
             break;
         }
-        let region = face_region(
-            topo,
-            pos.len(),
-            bad.iter().map(|&f| f as usize),
-            round.min(3) as usize,
-        );
         let mut round_moves = 0;
-        let verts: Vec<usize> = (0..pos.len())
-            .filter(|&v| region[v] && !fixed[v] && !topo.vertex_edges(v).is_empty())
-            .collect();
+        let verts = free_region(topo, fixed, &bad, round.min(3) as usize);
         for &v in &verts {
-            let now = flips_around(v, pos[v], hints[v], topo, pos, hints, proj);
-            if now.0 == 0 && now.1 >= BAD_ANGLE {
+            let Some(guard) = Guard::of(v, topo, pos, hints, proj, &mut origin[v]) else {
                 continue;
-            }
+            };
             let p0 = pos[v];
-            let (o, reach0) = *origin[v].get_or_insert_with(|| (p0, mean_edge(v, pos)));
-            let reach = mean_edge(v, pos);
             let n = proj.smooth_normal(hints[v]);
             let Some((k, _, _)) = kernel_centre(v, p0, n, topo, pos).filter(|k| k.1 > 0.0) else {
                 continue;
             };
-            let mut best: Option<(DVec3, u32, (usize, f64, f64))> = None;
-            for t in [1.0, 0.5, 0.25] {
-                let target = p0.lerp(k, t);
-                let (q, tri) = proj.closest_near(target, &[hints[v]]);
-                if q.distance(target) > 0.25 * reach || q.distance(o) > reach0 {
-                    continue;
-                }
-                let new = flips_around(v, q, tri, topo, pos, hints, proj);
-                if new.2 > now.2.max(0.05 * reach) {
-                    continue;
-                }
-                let cur = best.map_or(now, |b| b.2);
-                if new.0 < cur.0 || (new.0 == cur.0 && new.1 > cur.1) {
-                    best = Some((q, tri, new));
-                }
-            }
-            if let Some((q, tri, _)) = best {
-                pos[v] = q;
-                hints[v] = tri;
+            let targets = [1.0, 0.5, 0.25].map(|t| p0.lerp(k, t));
+            if move_to_best(v, &targets, &guard, topo, pos, hints, proj) {
                 *moves += 1;
                 round_moves += 1;
             }
         }
-        let mut faces: Vec<u32> = verts
-            .iter()
-            .flat_map(|&v| topo.vertex_faces(v).iter().copied())
-            .collect();
-        faces.extend_from_slice(&bad);
-        faces.sort_unstable();
-        faces.dedup();
-        let cur: &[DVec3] = pos;
-        let hint: &[u32] = hints;
-        bad = faces
-            .into_par_iter()
-            .filter(|&f| {
-                bad_face(
-                    topo.face_vertices(f as usize),
-                    cur,
-                    hint,
-                    proj,
-                    BAD_ANGLE,
-                    off,
-                )
-            })
-            .collect();
+        bad = still_bad(&verts, &bad, topo, pos, hints, proj, off);
         tracing::debug!(round, bad = bad.len(), region = verts.len(), "fold repair");
         // At full radius, stop once a round no longer lowers the count.
         if round >= 3 && (round_moves == 0 || bad.len() >= prev) {
@@ -413,6 +355,129 @@ fn vertex_rounds(
         prev = bad.len();
     }
     bad
+}
+
+/// What a single-vertex move must beat and keep to (see [`move_to_best`]).
+struct Guard {
+    /// [`flips_around`] of the vertex where it is.
+    now: (usize, f64, f64),
+    /// Where the repair first met the vertex, and its ring's mean edge length then.
+    origin: (DVec3, f64),
+    /// Its ring's mean edge length now.
+    reach: f64,
+}
+
+impl Guard {
+    /// The guard of vertex `v`, or `None` if no face around it is flipped or has an angle
+    /// below [`BAD_ANGLE`]. `origin` is where the repair first met `v` (set now if unset).
+    fn of(
+        v: usize,
+        topo: &Topology,
+        pos: &[DVec3],
+        hints: &[u32],
+        proj: &Projector,
+        origin: &mut Option<(DVec3, f64)>,
+    ) -> Option<Guard> {
+        let now = flips_around(v, pos[v], hints[v], topo, pos, hints, proj);
+        if now.0 == 0 && now.1 >= BAD_ANGLE {
+            return None;
+        }
+        let reach = mean_edge(topo, pos, v);
+        let origin = *origin.get_or_insert((pos[v], reach));
+        Some(Guard { now, origin, reach })
+    }
+}
+
+/// Moves vertex `v` to the best of `targets` projected onto the input, if one qualifies:
+/// fewer flipped faces around it than `guard.now` (or as many and a larger smallest
+/// angle), a projection shorter than a quarter of `guard.reach`, within the first ring
+/// length of the origin, and its faces no farther off the input than now (or than 5% of
+/// the reach); the first of equals wins. Updates `hints[v]`; returns whether it moved.
+#[allow(clippy::too_many_arguments)]
+fn move_to_best(
+    v: usize,
+    targets: &[DVec3],
+    guard: &Guard,
+    topo: &Topology,
+    pos: &mut [DVec3],
+    hints: &mut [u32],
+    proj: &Projector,
+) -> bool {
+    let (o, reach0) = guard.origin;
+    let mut best: Option<(DVec3, u32, (usize, f64, f64))> = None;
+    for &target in targets {
+        let (q, tri) = proj.closest_near(target, &[hints[v]]);
+        if q.distance(target) > 0.25 * guard.reach || q.distance(o) > reach0 {
+            continue;
+        }
+        let new = flips_around(v, q, tri, topo, pos, hints, proj);
+        if new.2 > guard.now.2.max(0.05 * guard.reach) {
+            continue;
+        }
+        let cur = best.map_or(guard.now, |b| b.2);
+        if new.0 < cur.0 || (new.0 == cur.0 && new.1 > cur.1) {
+            best = Some((q, tri, new));
+        }
+    }
+    let Some((q, tri, _)) = best else {
+        return false;
+    };
+    pos[v] = q;
+    hints[v] = tri;
+    true
+}
+
+/// The mean length of the edges around vertex `v`.
+fn mean_edge(topo: &Topology, pos: &[DVec3], v: usize) -> f64 {
+    let edges = topo.vertex_edges(v);
+    edges
+        .iter()
+        .map(|&e| pos[topo.other_vertex(e as usize, v as u32) as usize].distance(pos[v]))
+        .sum::<f64>()
+        / edges.len().max(1) as f64
+}
+
+/// The free (not `fixed`, not isolated) vertices within `rings` rings of the `bad` faces,
+/// in index order.
+fn free_region(topo: &Topology, fixed: &[bool], bad: &[u32], rings: usize) -> Vec<usize> {
+    let n = fixed.len();
+    let region = face_region(topo, n, bad.iter().map(|&f| f as usize), rings);
+    (0..n)
+        .filter(|&v| region[v] && !fixed[v] && !topo.vertex_edges(v).is_empty())
+        .collect()
+}
+
+/// The faces among `bad` and those around `verts` that are bad now (as [`bad_face`] with
+/// [`BAD_ANGLE`] and `off`), sorted.
+fn still_bad(
+    verts: &[usize],
+    bad: &[u32],
+    topo: &Topology,
+    pos: &[DVec3],
+    hints: &[u32],
+    proj: &Projector,
+    off: f64,
+) -> Vec<u32> {
+    let mut faces: Vec<u32> = verts
+        .iter()
+        .flat_map(|&v| topo.vertex_faces(v).iter().copied())
+        .collect();
+    faces.extend_from_slice(bad);
+    faces.sort_unstable();
+    faces.dedup();
+    faces
+        .into_par_iter()
+        .filter(|&f| {
+            bad_face(
+                topo.face_vertices(f as usize),
+                pos,
+                hints,
+                proj,
+                BAD_ANGLE,
+                off,
+            )
+        })
+        .collect()
 }
 
 /// Rounds of [`search_rounds`] at most.
@@ -446,37 +511,18 @@ fn search_rounds(
     moves: &mut usize,
     off: f64,
 ) -> Vec<u32> {
-    let mean_edge = |v: usize, pos: &[DVec3]| {
-        let edges = topo.vertex_edges(v);
-        edges
-            .iter()
-            .map(|&e| pos[topo.other_vertex(e as usize, v as u32) as usize].distance(pos[v]))
-            .sum::<f64>()
-            / edges.len().max(1) as f64
-    };
     let mut targets = Vec::new();
     for round in 0..SEARCH_ROUNDS {
         if bad.is_empty() {
             break;
         }
-        let region = face_region(
-            topo,
-            pos.len(),
-            bad.iter().map(|&f| f as usize),
-            round.min(3),
-        );
-        let verts: Vec<usize> = (0..pos.len())
-            .filter(|&v| region[v] && !fixed[v] && !topo.vertex_edges(v).is_empty())
-            .collect();
+        let verts = free_region(topo, fixed, &bad, round.min(3));
         let mut round_moves = 0;
         for &v in &verts {
-            let now = flips_around(v, pos[v], hints[v], topo, pos, hints, proj);
-            if now.0 == 0 && now.1 >= BAD_ANGLE {
+            let Some(guard) = Guard::of(v, topo, pos, hints, proj, &mut origin[v]) else {
                 continue;
-            }
+            };
             let p0 = pos[v];
-            let (o, reach0) = *origin[v].get_or_insert_with(|| (p0, mean_edge(v, pos)));
-            let reach = mean_edge(v, pos);
             let ring: Vec<DVec3> = topo
                 .vertex_edges(v)
                 .iter()
@@ -497,50 +543,12 @@ fn search_rounds(
             for t in SEARCH_STEPS {
                 targets.push(p0.lerp(centroid, t));
             }
-            let mut best: Option<(DVec3, u32, (usize, f64, f64))> = None;
-            for &target in &targets {
-                let (q, tri) = proj.closest_near(target, &[hints[v]]);
-                if q.distance(target) > 0.25 * reach || q.distance(o) > reach0 {
-                    continue;
-                }
-                let new = flips_around(v, q, tri, topo, pos, hints, proj);
-                if new.2 > now.2.max(0.05 * reach) {
-                    continue;
-                }
-                let cur = best.map_or(now, |b| b.2);
-                if new.0 < cur.0 || (new.0 == cur.0 && new.1 > cur.1) {
-                    best = Some((q, tri, new));
-                }
-            }
-            if let Some((q, tri, _)) = best {
-                pos[v] = q;
-                hints[v] = tri;
+            if move_to_best(v, &targets, &guard, topo, pos, hints, proj) {
                 *moves += 1;
                 round_moves += 1;
             }
         }
-        let mut faces: Vec<u32> = verts
-            .iter()
-            .flat_map(|&v| topo.vertex_faces(v).iter().copied())
-            .collect();
-        faces.extend_from_slice(&bad);
-        faces.sort_unstable();
-        faces.dedup();
-        let cur: &[DVec3] = pos;
-        let hint: &[u32] = hints;
-        bad = faces
-            .into_par_iter()
-            .filter(|&f| {
-                bad_face(
-                    topo.face_vertices(f as usize),
-                    cur,
-                    hint,
-                    proj,
-                    BAD_ANGLE,
-                    off,
-                )
-            })
-            .collect();
+        bad = still_bad(&verts, &bad, topo, pos, hints, proj, off);
         tracing::debug!(
             round,
             bad = bad.len(),
@@ -1072,7 +1080,6 @@ pub fn kernel_centre(
 mod tests {
     use super::*;
     use crate::generate::icosphere;
-    use crate::mesh::Mesh;
 
     /// The bad faces of `pos` among all faces (as [`bad_face`] with [`BAD_ANGLE`]).
     fn all_bad(topo: &Topology, pos: &[DVec3], hints: &[u32], proj: &Projector) -> Vec<u32> {
@@ -1084,106 +1091,107 @@ mod tests {
             .collect()
     }
 
+    /// A 3-level icosphere's mesh on a 5-level icosphere (the input), its vertices on the
+    /// input, with those in `pushed` moved past their first neighbour (onto the input), so
+    /// that their stars fold.
+    struct Folded {
+        proj: Projector,
+        topo: Topology,
+        pos: Vec<DVec3>,
+        hints: Vec<u32>,
+    }
+
+    impl Folded {
+        fn new(pushed: &[usize]) -> Folded {
+            let input = icosphere(5);
+            let tris: Vec<[u32; 3]> = input.faces().map(|f| [f[0], f[1], f[2]]).collect();
+            let proj = Projector::new(&input.positions, &tris).unwrap();
+            let coarse = icosphere(3);
+            let topo = Topology::build(&coarse);
+            let (mut pos, mut hints): (Vec<DVec3>, Vec<u32>) =
+                coarse.positions.iter().map(|&p| proj.closest(p)).unzip();
+            assert!(all_bad(&topo, &pos, &hints, &proj).is_empty());
+            for &v in pushed {
+                let w = topo.other_vertex(topo.vertex_edges(v)[0] as usize, v as u32) as usize;
+                (pos[v], hints[v]) = proj.closest(pos[w] + 0.3 * (pos[w] - pos[v]));
+            }
+            Folded {
+                proj,
+                topo,
+                pos,
+                hints,
+            }
+        }
+
+        fn bad(&self) -> Vec<u32> {
+            all_bad(&self.topo, &self.pos, &self.hints, &self.proj)
+        }
+
+        /// [`search_rounds`] from the bad faces; the faces left and the moves made.
+        fn search(&mut self, fixed: &[bool]) -> (Vec<u32>, usize) {
+            let bad = self.bad();
+            let mut origin = vec![None; self.pos.len()];
+            let mut moves = 0;
+            let left = search_rounds(
+                &mut self.pos,
+                &mut self.hints,
+                &self.topo,
+                fixed,
+                &self.proj,
+                bad,
+                &mut origin,
+                &mut moves,
+                f64::INFINITY,
+            );
+            (left, moves)
+        }
+    }
+
     /// The star search alone (no kernel move, no re-embedding) opens folds made by pushing
     /// vertices of a sphere's mesh past a neighbour: each pushed vertex is walked back onto
     /// the input, towards its ring, until no face of its star is turned over or thin; every
     /// other vertex stays, and every vertex stays on the input.
     #[test]
     fn star_search_opens_pushed_folds() {
-        let input = icosphere(5);
-        let tris: Vec<[u32; 3]> = input.faces().map(|f| [f[0], f[1], f[2]]).collect();
-        let proj = Projector::new(&input.positions, &tris).unwrap();
-        let coarse: Mesh = icosphere(3);
-        let topo = Topology::build(&coarse);
-        let mut pos: Vec<DVec3> = coarse
-            .positions
-            .iter()
-            .map(|&p| proj.closest(p).0)
-            .collect();
-        let mut hints: Vec<u32> = pos.iter().map(|&p| proj.closest(p).1).collect();
-        assert!(all_bad(&topo, &pos, &hints, &proj).is_empty());
-        let mut pushed = Vec::new();
-        for v in (0..pos.len()).step_by(101) {
-            let e = topo.vertex_edges(v)[0];
-            let w = topo.other_vertex(e as usize, v as u32) as usize;
-            let (q, t) = proj.closest(pos[w] + 0.3 * (pos[w] - pos[v]));
-            pos[v] = q;
-            hints[v] = t;
-            pushed.push(v);
-        }
-        let bad = all_bad(&topo, &pos, &hints, &proj);
-        assert!(bad.len() >= 2 * pushed.len(), "{} bad faces", bad.len());
-        let before = pos.clone();
-        let fixed = vec![false; pos.len()];
-        let mut origin = vec![None; pos.len()];
-        let mut moves = 0;
-        let left = search_rounds(
-            &mut pos,
-            &mut hints,
-            &topo,
-            &fixed,
-            &proj,
-            bad,
-            &mut origin,
-            &mut moves,
-            f64::INFINITY,
+        let pushed: Vec<usize> = (0..642).step_by(101).collect();
+        let mut c = Folded::new(&pushed);
+        assert!(
+            c.bad().len() >= 2 * pushed.len(),
+            "{} bad faces",
+            c.bad().len()
         );
+        let before = c.pos.clone();
+        let (left, moves) = c.search(&vec![false; before.len()]);
         assert!(left.is_empty(), "{} bad faces left", left.len());
-        assert!(all_bad(&topo, &pos, &hints, &proj).is_empty());
+        assert!(c.bad().is_empty());
         assert!(moves >= pushed.len(), "{moves} moves");
-        for v in 0..pos.len() {
-            assert!(proj.closest(pos[v]).0.distance(pos[v]) < 1e-9, "vertex {v}");
-            let near = pushed.iter().any(|&p| {
-                p == v
-                    || topo
-                        .vertex_edges(p)
+        for (v, (&p, &b)) in c.pos.iter().zip(&before).enumerate() {
+            assert!(c.proj.closest(p).0.distance(p) < 1e-9, "vertex {v}");
+            let near = pushed.iter().any(|&u| {
+                u == v
+                    || c.topo
+                        .vertex_edges(u)
                         .iter()
-                        .any(|&e| topo.other_vertex(e as usize, p as u32) as usize == v)
+                        .any(|&e| c.topo.other_vertex(e as usize, u as u32) as usize == v)
             });
             if !near {
-                assert_eq!(pos[v], before[v], "vertex {v} moved");
+                assert_eq!(p, b, "vertex {v} moved");
             }
         }
     }
 
     /// With a fixed pushed vertex the search cannot open its fold by moving it; it leaves
-    /// the fold (or opens it by moving the ring) and never moves the fixed vertex.
+    /// the fold (or opens it by moving the ring) and never moves the fixed vertex; the faces
+    /// it reports are exactly the bad ones.
     #[test]
     fn star_search_keeps_fixed_vertices() {
-        let input = icosphere(5);
-        let tris: Vec<[u32; 3]> = input.faces().map(|f| [f[0], f[1], f[2]]).collect();
-        let proj = Projector::new(&input.positions, &tris).unwrap();
-        let coarse = icosphere(3);
-        let topo = Topology::build(&coarse);
-        let mut pos: Vec<DVec3> = coarse
-            .positions
-            .iter()
-            .map(|&p| proj.closest(p).0)
-            .collect();
-        let mut hints: Vec<u32> = pos.iter().map(|&p| proj.closest(p).1).collect();
         let v = 7;
-        let e = topo.vertex_edges(v)[0];
-        let w = topo.other_vertex(e as usize, v as u32) as usize;
-        let (q, t) = proj.closest(pos[w] + 0.3 * (pos[w] - pos[v]));
-        pos[v] = q;
-        hints[v] = t;
-        let mut fixed = vec![false; pos.len()];
+        let mut c = Folded::new(&[v]);
+        let q = c.pos[v];
+        let mut fixed = vec![false; c.pos.len()];
         fixed[v] = true;
-        let bad = all_bad(&topo, &pos, &hints, &proj);
-        let mut origin = vec![None; pos.len()];
-        let mut moves = 0;
-        let left = search_rounds(
-            &mut pos,
-            &mut hints,
-            &topo,
-            &fixed,
-            &proj,
-            bad,
-            &mut origin,
-            &mut moves,
-            f64::INFINITY,
-        );
-        assert_eq!(pos[v], q);
-        assert_eq!(left, all_bad(&topo, &pos, &hints, &proj));
+        let (left, _) = c.search(&fixed);
+        assert_eq!(c.pos[v], q);
+        assert_eq!(left, c.bad());
     }
 }
