@@ -103,6 +103,10 @@ pub struct PrepareArgs {
     /// --sharp-angle or detected).
     #[arg(long, value_enum, default_value_t = RemeshArg::Auto)]
     pub remesh: RemeshArg,
+    /// Keep the normal mesh's vertices on the input: no least-squares offsets along their
+    /// piercing lines (`remesh::normal_fit`, which brings the remesh closer to the input).
+    #[arg(long)]
+    pub on_surface: bool,
 }
 
 impl PrepareArgs {
@@ -116,6 +120,7 @@ impl PrepareArgs {
             detect_features: !self.no_auto_features,
             normal: self.remesh.into(),
             force_remesh: false,
+            fit: !self.on_surface,
         }
     }
 }

@@ -11,7 +11,9 @@ use crate::codec::progressive::{EncodeOptions, Wavelet};
 use crate::distance::{sampled_rms_to, ClosestPoint};
 use crate::hierarchy::Hierarchy;
 use crate::mesh::Mesh;
-use crate::remesh::normal::{normal_resample_on, NormalOptions, NormalStats, NormalSurface};
+use crate::remesh::normal::{
+    normal_resample_fitted_on, normal_resample_on, NormalOptions, NormalStats, NormalSurface,
+};
 use crate::remesh::{remesh_with_progress, RemeshOptions, Remeshed};
 use crate::subdivision::sharp_edges_by_angle;
 use crate::topology::Topology;
@@ -99,6 +101,12 @@ pub struct PrepareOptions {
     /// creases the MAPS remesh with crease-tagged base edges and the lifted butterfly is
     /// better (fandisk). Ignored for quads and for a detected hierarchy.
     pub normal: Option<bool>,
+    /// After the normal re-sampling, move its vertices off the input along their piercing
+    /// lines to the least-squares fit of the input ([`crate::remesh::normal_fit`]; default
+    /// true): measured on the bunny, the remesh's distance to the input drops by 2.6 dB and
+    /// the stream needs fewer bytes at every PSNR above 75 dB. `false` keeps every vertex
+    /// on the input.
+    pub fit: bool,
 }
 
 impl Default for PrepareOptions {
@@ -111,6 +119,7 @@ impl Default for PrepareOptions {
             detect_features: true,
             force_remesh: false,
             normal: None,
+            fit: true,
         }
     }
 }
@@ -250,7 +259,12 @@ pub fn prepare(
     if let Some(surface) = surface {
         let surface = surface?;
         progress("normal", 0.0);
-        let stats = normal_resample_on(&mut r.hierarchy, &surface, &NormalOptions::default())?;
+        let resample = if opts.fit {
+            normal_resample_fitted_on
+        } else {
+            normal_resample_on
+        };
+        let stats = resample(&mut r.hierarchy, &surface, &NormalOptions::default())?;
         r.mesh.positions.clone_from(&r.hierarchy.positions);
         normal = Some(stats);
         progress("normal", 1.0);

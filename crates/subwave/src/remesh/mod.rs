@@ -35,6 +35,7 @@
 mod flatten;
 pub mod fold_repair;
 pub mod normal;
+pub mod normal_fit;
 pub mod param;
 pub mod param_relax;
 pub mod quality;

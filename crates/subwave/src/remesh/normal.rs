@@ -30,6 +30,11 @@
 //! input's curves, which a normal line does not follow. Unlike Guskov et al. the piercing is
 //! not restricted by the parameterization, so on strongly curved, coarsely sampled regions a
 //! level can fold; [`normal_resample`] leaves the check to [`super::quality`].
+//!
+//! Every re-sampled vertex lies on the input, so each triangle is a chord of it and the
+//! remesh's error is one-sided; [`normal_resample_fitted_on`] then offsets the re-sampled
+//! vertices along their piercing lines to the least-squares fit of the input
+//! ([`super::normal_fit`]), which keeps their details along the same axes.
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -82,6 +87,9 @@ pub struct NormalStats {
     /// For each step: the other odd vertices moved to the closest input point of their
     /// prediction (their details are nearly normal).
     pub projected: Vec<usize>,
+    /// The least-squares offsets off the input ([`super::normal_fit::fit_offsets`]), if
+    /// they were applied.
+    pub fit: Option<super::normal_fit::FitStats>,
 }
 
 impl NormalStats {
@@ -155,6 +163,13 @@ impl NormalSurface {
     }
 }
 
+impl NormalSurface {
+    /// The index of the input surface (closest points, ray casts).
+    pub(crate) fn projector(&self) -> &Projector {
+        &self.surface.proj
+    }
+}
+
 /// [`normal_resample`] on an indexed input surface.
 ///
 /// # Errors
@@ -164,6 +179,35 @@ pub fn normal_resample_on(
     surface: &NormalSurface,
     opts: &NormalOptions,
 ) -> Result<NormalStats> {
+    Ok(resample_with_axes(h, surface, opts)?.0)
+}
+
+/// [`normal_resample_on`], then [`super::normal_fit`]'s least-squares offsets along the
+/// same piercing lines ([`NormalStats::fit`]): the normal mesh moved off the input to fit it
+/// in the L2 sense.
+///
+/// # Errors
+/// As [`normal_resample_on`].
+pub fn normal_resample_fitted_on(
+    h: &mut Hierarchy,
+    surface: &NormalSurface,
+    opts: &NormalOptions,
+) -> Result<NormalStats> {
+    let (mut stats, axes) = resample_with_axes(h, surface, opts)?;
+    let n0 = h.num_vertices(opts.from_level.min(h.levels()));
+    stats.fit = Some(super::normal_fit::fit_along(h, surface, &axes, n0));
+    Ok(stats)
+}
+
+/// The re-sampling of [`normal_resample_on`], also returning each re-sampled vertex's
+/// piercing axis: from the vertex `h.num_vertices(opts.from_level)` on, its unit normal and
+/// the largest offset along it ([`super::normal_fit::MAX_OFFSET`] parent edges), `None`
+/// for the vertices that keep their MAPS positions by rule (on or next to curves).
+fn resample_with_axes(
+    h: &mut Hierarchy,
+    surface: &NormalSurface,
+    opts: &NormalOptions,
+) -> Result<(NormalStats, Vec<super::normal_fit::Axis>)> {
     if h.split != Split::Triangles {
         return Err(Error::InvalidArgument(
             "normal remeshing needs a triangle hierarchy (not --quads)".to_string(),
@@ -173,6 +217,8 @@ pub fn normal_resample_on(
     let levels = h.levels();
     let features = feature_edges(&h.topologies);
     let mut stats = NormalStats::default();
+    let n0 = h.num_vertices(opts.from_level.min(levels));
+    let mut axes: Vec<super::normal_fit::Axis> = vec![None; h.positions.len() - n0];
     // The wavelet borrows `h`; work on a copy of the positions and write them back.
     let mut pos = h.positions.clone();
     {
@@ -199,6 +245,19 @@ pub fn normal_resample_on(
                 if feature[e] {
                     on_curve[*a as usize] = true;
                     on_curve[*b as usize] = true;
+                }
+            }
+            if j >= opts.from_level {
+                for (e, &[a, b]) in coarse_topo.edge_vertices.iter().enumerate() {
+                    let near = on_curve[a as usize] || on_curve[b as usize];
+                    if feature[e] || (opts.keep_near_curves && near) {
+                        continue;
+                    }
+                    let len = pos[a as usize].distance(pos[b as usize]);
+                    let n = frames[e].normal;
+                    if len.is_finite() && len > 0.0 && n.is_finite() {
+                        axes[nc + e - n0] = Some((n, super::normal_fit::MAX_OFFSET * len));
+                    }
                 }
             }
             let (coarse, odd) = pos[..nf].split_at_mut(nc);
@@ -241,7 +300,7 @@ pub fn normal_resample_on(
         }
     }
     h.positions = pos;
-    Ok(stats)
+    Ok((stats, axes))
 }
 
 /// The input surface (a BVH and oriented triangle normals).
@@ -275,7 +334,7 @@ impl Surface {
 
 /// For each level `j < L`, which of its edges lie on a boundary or on a base feature edge
 /// (crease sharpness > 0 at level 0; halves of such edges at finer levels).
-fn feature_edges(topologies: &[Topology]) -> Vec<Vec<bool>> {
+pub(super) fn feature_edges(topologies: &[Topology]) -> Vec<Vec<bool>> {
     let mut out: Vec<Vec<bool>> = Vec::with_capacity(topologies.len());
     for (j, t) in topologies.iter().enumerate() {
         let mut f: Vec<bool> = (0..t.num_edges())
