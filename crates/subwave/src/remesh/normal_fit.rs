@@ -148,6 +148,12 @@ mod tests {
     use crate::remesh::normal::{normal_resample_fitted_on, normal_resample_on, NormalOptions};
     use crate::remesh::{remesh, RemeshOptions};
 
+    /// The indexed surface of a triangle mesh.
+    fn surface_of(input: &crate::mesh::Mesh) -> NormalSurface {
+        let tris: Vec<[u32; 3]> = input.faces().map(|f| [f[0], f[1], f[2]]).collect();
+        NormalSurface::new(&input.positions, &tris).unwrap()
+    }
+
     /// RMS distance to the unit sphere of the remesh `h`'s finest triangles, sampled at 6
     /// interior points each (not the centroids the fit itself samples).
     fn sphere_rms(h: &Hierarchy) -> f64 {
@@ -188,11 +194,7 @@ mod tests {
             },
         )
         .unwrap();
-        let tris: Vec<[u32; 3]> = input
-            .faces()
-            .flat_map(|f| (1..f.len() - 1).map(move |k| [f[0], f[k], f[k + 1]]))
-            .collect();
-        let surface = NormalSurface::new(&input.positions, &tris).unwrap();
+        let surface = surface_of(&input);
         let opts = NormalOptions::default();
         let mut h = r.hierarchy.clone();
         normal_resample_on(&mut h, &surface, &opts).unwrap();
@@ -231,30 +233,13 @@ mod tests {
         assert!(stats.mean_offset > 0.0 && stats.mean_offset < MAX_OFFSET);
     }
 
-    /// Quad hierarchies are refused by name; a hierarchy with nothing to re-sample (two
-    /// levels, both left to MAPS) is left as it is.
+    /// A hierarchy with nothing to re-sample (two levels, both left to MAPS) is left as it
+    /// is. (Quad hierarchies are refused by the re-sampling they share, tested in
+    /// [`super::super::normal`].)
     #[test]
-    fn refuses_quads_and_keeps_coarse_hierarchies() {
+    fn coarse_hierarchies_are_left_as_they_are() {
         let input = generate::torus(1.0, 0.4, 16, 8, true);
-        let tris: Vec<[u32; 3]> = input
-            .faces()
-            .flat_map(|f| (1..f.len() - 1).map(move |k| [f[0], f[k], f[k + 1]]))
-            .collect();
-        let surface = NormalSurface::new(&input.positions, &tris).unwrap();
-        let quads = remesh(
-            &input,
-            &RemeshOptions {
-                levels: 1,
-                base_faces: 40,
-                quads: true,
-                ..Default::default()
-            },
-        )
-        .unwrap();
-        let mut h = quads.hierarchy.clone();
-        let err =
-            normal_resample_fitted_on(&mut h, &surface, &NormalOptions::default()).unwrap_err();
-        assert!(err.to_string().contains("triangle hierarchy"), "{err}");
+        let surface = surface_of(&input);
         let r = remesh(
             &input,
             &RemeshOptions {
