@@ -87,7 +87,7 @@ pub struct NormalStats {
     /// For each step: the other odd vertices moved to the closest input point of their
     /// prediction (their details are nearly normal).
     pub projected: Vec<usize>,
-    /// The least-squares offsets off the input ([`super::normal_fit::fit_offsets`]), if
+    /// The least-squares offsets off the input ([`normal_resample_fitted_on`]), if
     /// they were applied.
     pub fit: Option<super::normal_fit::FitStats>,
 }

@@ -49,9 +49,10 @@ pub const MAX_OFFSET: f64 = 0.25;
 
 /// A re-sampled vertex's piercing axis: its unit frame normal and the largest offset along
 /// it; `None` for a vertex that does not move.
-pub type Axis = Option<(DVec3, f64)>;
+pub(crate) type Axis = Option<(DVec3, f64)>;
 
-/// What [`fit_along`] did (JSON keys `movable`, `mean_offset`, `clamped`).
+/// What the least-squares offsets of [`super::normal::normal_resample_fitted_on`] did (JSON
+/// keys `movable`, `mean_offset`, `clamped`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct FitStats {
     /// Vertices that may move (re-sampled odd vertices away from curves).
