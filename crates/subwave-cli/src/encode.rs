@@ -103,8 +103,9 @@ pub struct PrepareArgs {
     /// --sharp-angle or detected).
     #[arg(long, value_enum, default_value_t = RemeshArg::Auto)]
     pub remesh: RemeshArg,
-    /// Keep the normal mesh's vertices on the input: no least-squares offsets along their
-    /// piercing lines (`remesh::normal_fit`, which brings the remesh closer to the input).
+    /// Keep the remesh's vertices on the input: no least-squares offsets along their
+    /// piercing lines or predicted normals (`remesh::normal_fit`, which brings the remesh
+    /// closer to the input).
     #[arg(long)]
     pub on_surface: bool,
 }
@@ -189,6 +190,8 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     }
     if let Some(n) = &prepared.normal {
         println!("{}", print::normal_stats(n));
+    } else if let Some(f) = &prepared.fit {
+        println!("MAPS remesh: {}", print::fit_stats(f));
     }
     if let (true, Some(a)) = (prepared.features_detected, prepared.sharp_angle) {
         println!(

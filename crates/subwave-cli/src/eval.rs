@@ -130,6 +130,8 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     if let (Some(n), false) = (&prep.normal, args.json) {
         println!("{}", print::normal_stats(n));
+    } else if let (Some(f), false) = (&prep.fit, args.json) {
+        println!("MAPS remesh: {}", print::fit_stats(f));
     }
     let h = &prep.hierarchy;
     let mut opts = options(args, &prep);

@@ -233,17 +233,22 @@ pub fn normal_stats(n: &subwave::remesh::normal::NormalStats) -> String {
     let pierced: usize = n.normal.iter().sum();
     let projected: usize = n.projected.iter().sum();
     let pc = |k: usize| 100.0 * k as f64 / odd.max(1) as f64;
-    let fit = n.fit.map_or_else(String::new, |f| {
-        format!(
-            "; least-squares offsets off the input on {} (mean {:.3} edge lengths, {} clamped)",
-            f.movable, f.mean_offset, f.clamped
-        )
-    });
+    let fit = n
+        .fit
+        .map_or_else(String::new, |f| format!("; {}", fit_stats(&f)));
     format!(
         "normal mesh: {pierced} of {odd} odd vertices pierced ({:.1}%), {projected} projected ({:.1}%), {} kept{fit}",
         pc(pierced),
         pc(projected),
         odd - pierced - projected
+    )
+}
+
+/// The least-squares offsets off the input (`remesh::normal_fit`), in a few words.
+pub fn fit_stats(f: &subwave::remesh::normal_fit::FitStats) -> String {
+    format!(
+        "least-squares offsets off the input on {} vertices (mean {:.3} edge lengths, {} clamped)",
+        f.movable, f.mean_offset, f.clamped
     )
 }
 

@@ -12,8 +12,10 @@ use crate::distance::{sampled_rms_to, ClosestPoint};
 use crate::hierarchy::Hierarchy;
 use crate::mesh::Mesh;
 use crate::remesh::normal::{
-    normal_resample_fitted_on, normal_resample_on, NormalOptions, NormalStats, NormalSurface,
+    fit_on, normal_resample_fitted_on, normal_resample_on, NormalOptions, NormalStats,
+    NormalSurface,
 };
+use crate::remesh::normal_fit::FitStats;
 use crate::remesh::{remesh_with_progress, RemeshOptions, Remeshed};
 use crate::subdivision::sharp_edges_by_angle;
 use crate::topology::Topology;
@@ -104,8 +106,10 @@ pub struct PrepareOptions {
     /// After the normal re-sampling, move its vertices off the input along their piercing
     /// lines to the least-squares fit of the input ([`crate::remesh::normal_fit`]; default
     /// true): measured on the bunny, the remesh's distance to the input drops by 2.6 dB and
-    /// the stream needs fewer bytes at every PSNR above 75 dB. `false` keeps every vertex
-    /// on the input.
+    /// the stream needs fewer bytes at every PSNR above 75 dB. A MAPS remesh (feature edges,
+    /// [`PrepareOptions::normal`] false) gets the same offsets along the normals of its
+    /// butterfly prediction ([`crate::remesh::normal::fit_on`]; fandisk: 2.5 dB closer).
+    /// `false` keeps every vertex on the input. Ignored for quads.
     pub fit: bool,
 }
 
@@ -154,6 +158,9 @@ pub struct Prepared {
     pub sharp_angle: Option<f64>,
     /// Whether [`Prepared::sharp_angle`] was detected rather than given.
     pub features_detected: bool,
+    /// The least-squares offsets off the input ([`PrepareOptions::fit`]), on the normal mesh
+    /// (also in [`NormalStats::fit`]) or on the MAPS remesh, if they were applied.
+    pub fit: Option<FitStats>,
     /// The RMS distance from the hierarchy's finest level to the input
     /// ([`sampled_rms_to`] with [`REMESH_SAMPLES`] area samples), if the input was remeshed.
     /// One-sided: PSNR takes the larger of both directions, so this may underestimate the
@@ -212,6 +219,7 @@ pub fn prepare(
                 normal: None,
                 sharp_angle: None,
                 features_detected: false,
+                fit: None,
                 remesh_rms: None,
                 distance_ms: 0.0,
             });
@@ -235,11 +243,13 @@ pub fn prepare(
         ..RemeshOptions::default()
     };
     let run_normal = opts.normal.unwrap_or(sharp_angle.is_none()) && !opts.quads;
+    // The input's index for the normal re-sampling or, on a MAPS remesh, the offsets alone.
+    let index_surface = (run_normal || opts.fit) && !opts.quads;
     // The normal re-sampling's index of the input, and the one that measures the remesh's
     // distance, are built beside the remesh.
     let (r, surface, input_bvh) = std::thread::scope(|scope| {
         let indexes = scope.spawn(|| {
-            let surface = run_normal.then(|| {
+            let surface = index_surface.then(|| {
                 let tris: Vec<[u32; 3]> = mesh
                     .faces()
                     .flat_map(|f| (2..f.len()).map(move |k| [f[0], f[k - 1], f[k]]))
@@ -255,19 +265,26 @@ pub fn prepare(
         (r, surface, bvh)
     });
     let mut r = r?;
-    let mut normal = None;
+    let (mut normal, mut fit) = (None, None);
     if let Some(surface) = surface {
         let surface = surface?;
-        progress("normal", 0.0);
-        let resample = if opts.fit {
-            normal_resample_fitted_on
+        let no = NormalOptions::default();
+        if run_normal {
+            progress("normal", 0.0);
+            let stats = if opts.fit {
+                normal_resample_fitted_on(&mut r.hierarchy, &surface, &no)?
+            } else {
+                normal_resample_on(&mut r.hierarchy, &surface, &no)?
+            };
+            fit = stats.fit;
+            normal = Some(stats);
+            progress("normal", 1.0);
         } else {
-            normal_resample_on
-        };
-        let stats = resample(&mut r.hierarchy, &surface, &NormalOptions::default())?;
+            progress("fit", 0.0);
+            fit = Some(fit_on(&mut r.hierarchy, &surface, &no)?);
+            progress("fit", 1.0);
+        }
         r.mesh.positions.clone_from(&r.hierarchy.positions);
-        normal = Some(stats);
-        progress("normal", 1.0);
     }
     progress("distance", 0.0);
     let t = std::time::Instant::now();
@@ -280,6 +297,7 @@ pub fn prepare(
         normal,
         sharp_angle,
         features_detected: detected.is_some(),
+        fit,
         remesh_rms,
         distance_ms,
     })

@@ -30,6 +30,10 @@
 //! gain: on the bunny at 5 levels (200 base faces) the normal mesh goes from 83.1 to 85.7 dB
 //! (one-sided RMS to the input), and more steps (damped, 2 or 3) gained under 0.1 dB.
 //!
+//! [`super::normal::fit_on`] applies the same offsets to a remesh that is not re-sampled (a
+//! MAPS remesh, whose vertices lie on the input too), along the normals of its butterfly
+//! prediction: fandisk's goes from 89.3 to 91.8 dB.
+//!
 //! Moving vertices of several levels at once changes the predictions of the finer levels, so
 //! their details are no longer exactly normal; measured on the bunny, moving every
 //! re-sampled level still spends fewer bits at equal PSNR (the curve of `subwave eval`, from
@@ -146,7 +150,9 @@ pub(crate) fn fit_along(
 mod tests {
     use super::*;
     use crate::generate;
-    use crate::remesh::normal::{normal_resample_fitted_on, normal_resample_on, NormalOptions};
+    use crate::remesh::normal::{
+        fit_on, normal_resample_fitted_on, normal_resample_on, NormalOptions,
+    };
     use crate::remesh::{remesh, RemeshOptions};
 
     /// The indexed surface of a triangle mesh.
@@ -232,6 +238,33 @@ mod tests {
             h.positions.len() - n0
         );
         assert!(stats.mean_offset > 0.0 && stats.mean_offset < MAX_OFFSET);
+    }
+
+    /// The offsets alone on a MAPS remesh ([`fit_on`]): the sphere's chord error more than
+    /// halved too, the vertices of the first two steps kept.
+    #[test]
+    fn offsets_alone_fit_a_maps_remesh() {
+        let input = generate::icosphere(5);
+        let r = remesh(
+            &input,
+            &RemeshOptions {
+                levels: 3,
+                base_faces: 40,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let opts = NormalOptions::default();
+        let mut h = r.hierarchy.clone();
+        let stats = fit_on(&mut h, &surface_of(&input), &opts).unwrap();
+        let (before, after) = (sphere_rms(&r.hierarchy), sphere_rms(&h));
+        assert!(
+            after < 0.5 * before,
+            "RMS to the sphere {before:e} -> {after:e} ({stats:?})"
+        );
+        let n0 = h.num_vertices(opts.from_level);
+        assert_eq!(&h.positions[..n0], &r.hierarchy.positions[..n0]);
+        assert_eq!(stats.movable, h.positions.len() - n0);
     }
 
     /// A hierarchy with nothing to re-sample (two levels, both left to MAPS) is left as it
