@@ -161,6 +161,22 @@ mod tests {
         NormalSurface::new(&input.positions, &tris).unwrap()
     }
 
+    /// A fine polyhedron of the unit sphere (chord error ~2e-4) and its MAPS remesh, coarser
+    /// (chord error ~1e-3).
+    fn sphere_remesh() -> (crate::mesh::Mesh, crate::remesh::Remeshed) {
+        let input = generate::icosphere(5);
+        let r = remesh(
+            &input,
+            &RemeshOptions {
+                levels: 3,
+                base_faces: 40,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        (input, r)
+    }
+
     /// RMS distance to the unit sphere of the remesh `h`'s finest triangles, sampled at 6
     /// interior points each (not the centroids the fit itself samples).
     fn sphere_rms(h: &Hierarchy) -> f64 {
@@ -190,17 +206,7 @@ mod tests {
     /// and the vertices of the steps left to MAPS stay; every move is bounded.
     #[test]
     fn offsets_halve_the_chord_error_of_a_sphere() {
-        // A fine polyhedron (chord error ~2e-4) remeshed coarser (chord error ~1e-3).
-        let input = generate::icosphere(5);
-        let r = remesh(
-            &input,
-            &RemeshOptions {
-                levels: 3,
-                base_faces: 40,
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let (input, r) = sphere_remesh();
         let surface = surface_of(&input);
         let opts = NormalOptions::default();
         let mut h = r.hierarchy.clone();
@@ -244,16 +250,7 @@ mod tests {
     /// halved too, the vertices of the first two steps kept.
     #[test]
     fn offsets_alone_fit_a_maps_remesh() {
-        let input = generate::icosphere(5);
-        let r = remesh(
-            &input,
-            &RemeshOptions {
-                levels: 3,
-                base_faces: 40,
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let (input, r) = sphere_remesh();
         let opts = NormalOptions::default();
         let mut h = r.hierarchy.clone();
         let stats = fit_on(&mut h, &surface_of(&input), &opts).unwrap();
