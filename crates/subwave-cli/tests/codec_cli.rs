@@ -230,3 +230,46 @@ fn irregular_input_is_remeshed() {
         "2000",
     ]);
 }
+
+/// The remesh's vertices are offset off the input to its least-squares fit by default, which
+/// brings the remesh closer to the input; `--on-surface` keeps them on it.
+#[test]
+fn least_squares_offsets_and_on_surface() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("t.obj");
+    write_mesh(&generate::torus(1.0, 0.4, 45, 23, true), &mesh, None).unwrap();
+    let swv = dir.path().join("t.swv");
+    let encode = |extra: &[&str]| {
+        let mut args = vec![
+            "encode",
+            mesh.to_str().unwrap(),
+            "-o",
+            swv.to_str().unwrap(),
+            "--levels",
+            "3",
+            "--base-faces",
+            "64",
+        ];
+        args.extend_from_slice(extra);
+        let out = ok(&args);
+        // "remesh: 61.23 dB from the remesh to the input ..."
+        let db: f64 = out
+            .lines()
+            .find_map(|l| l.strip_prefix("remesh: "))
+            .and_then(|l| l.split(' ').next())
+            .and_then(|x| x.parse().ok())
+            .unwrap_or_else(|| panic!("no remesh distance in {out}"));
+        (out, db)
+    };
+    let (fitted, fitted_db) = encode(&[]);
+    assert!(
+        fitted.contains("least-squares offsets off the input"),
+        "{fitted}"
+    );
+    let (on, on_db) = encode(&["--on-surface"]);
+    assert!(!on.contains("least-squares"), "{on}");
+    assert!(
+        fitted_db > on_db + 1.0,
+        "fitted {fitted_db} dB, on the surface {on_db} dB"
+    );
+}
