@@ -190,6 +190,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             "remeshed": prep.remeshed.is_some(),
             "method": prep.remeshed.as_ref().map(|r| r.method.name()),
             "normal_mesh": prep.normal.is_some(),
+            "fit": prep.fit,
             "sharp_angle": prep.sharp_angle,
             "features_detected": prep.features_detected,
             "remesh_rms": prep.remesh_rms,

@@ -161,9 +161,7 @@ impl NormalSurface {
             },
         })
     }
-}
 
-impl NormalSurface {
     /// The index of the input surface (closest points, ray casts).
     pub(crate) fn projector(&self) -> &Projector {
         &self.surface.proj
