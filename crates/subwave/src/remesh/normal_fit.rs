@@ -10,9 +10,10 @@
 //! is 2/3 of its sagitta and its RMS deviation 0.73 of it; moving the chord's ends outwards
 //! by the mean leaves 0.30 of the sagitta, 7.8 dB less error.
 //!
-//! [`super::normal::normal_resample_fitted_on`] does this on the surface: each re-sampled vertex `v` (an odd vertex of a
-//! step the normal re-sampling re-samples, away from boundary and feature curves) moves by
-//! a signed offset `t_v` along the normal `n_v` of its local frame on the predicted surface —
+//! [`super::normal::normal_resample_fitted_on`] does this on the surface: each re-sampled
+//! vertex `v` (an odd vertex of a step the normal re-sampling re-samples, away from boundary
+//! and feature curves) moves by a signed offset `t_v` along the normal `n_v` of its local
+//! frame on the predicted surface —
 //! the very line it was pierced along, so its wavelet detail stays along the coder's first
 //! axis (Khodakovsky & Guskov 2002: one scalar per vertex). The offsets minimise the squared
 //! distance between the remesh and the input, sampled at the centroid of each finest
