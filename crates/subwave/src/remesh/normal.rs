@@ -286,20 +286,20 @@ fn resample_with_axes(
                 .with_min_len(1024)
                 .enumerate()
                 .map(|(e, x)| {
-                    if !pierce || feature[e] || j < opts.from_level {
+                    // The vertices with an axis: not on or next to a curve, a finite parent
+                    // edge and normal.
+                    if !pierce || j < opts.from_level {
+                        return (0, 0);
+                    }
+                    let Some((n, _)) = axes[nc + e - n0] else {
+                        return (0, 0);
+                    };
+                    let p = predicted[nc + e];
+                    if !p.is_finite() {
                         return (0, 0);
                     }
                     let [a, b] = coarse_topo.edge_vertices[e];
-                    if opts.keep_near_curves && (on_curve[a as usize] || on_curve[b as usize]) {
-                        return (0, 0);
-                    }
-                    let len = coarse[a as usize].distance(coarse[b as usize]);
-                    let p = predicted[nc + e];
-                    let n = frames[e].normal;
-                    if !len.is_finite() || len <= 0.0 || !p.is_finite() {
-                        return (0, 0);
-                    }
-                    let reach = opts.reach * len;
+                    let reach = opts.reach * coarse[a as usize].distance(coarse[b as usize]);
                     if let Some(q) = surface.pierce(p, n, reach, opts.min_cos) {
                         *x = q;
                         return (1, 0);
