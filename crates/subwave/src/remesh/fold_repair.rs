@@ -84,9 +84,9 @@ fn flip_sign(fv: &[u32], pos: &[DVec3], hints: &[u32], proj: &Projector) -> (f64
 /// A face's flip sign (as [`flip_sign`]), smallest angle (degrees), whether it is
 /// degenerate (as [`super::quality::Quality::degenerate`]), and its centroid's distance
 /// to the input.
-type FaceState = (f64, f64, bool, f64);
+pub(super) type FaceState = (f64, f64, bool, f64);
 
-fn face_state(fv: &[u32], pos: &[DVec3], hints: &[u32], proj: &Projector) -> FaceState {
+pub(super) fn face_state(fv: &[u32], pos: &[DVec3], hints: &[u32], proj: &Projector) -> FaceState {
     let angle = min_angle(fv, pos);
     let degenerate = angle < DEGENERATE_DEGREES || face_normal(fv, pos).length_squared() == 0.0;
     let (sign, dist) = flip_sign(fv, pos, hints, proj);

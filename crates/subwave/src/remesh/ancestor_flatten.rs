@@ -1,0 +1,453 @@
+//! Last resort for the folds a remesh keeps: re-subdivide the nearest unfolded ancestor.
+//!
+//! A semi-regular remesh is a hierarchy: every finest-level triangle `f` of an `L`-level
+//! remesh descends from triangle `f >> 2(L − m)` of level `m` (the children of triangle `k`
+//! are `4k..4k+3`, Maret eq. 5.7), and every vertex created at level `l + 1` sits on an edge
+//! of level `l` (the ordering contract of [`crate::subdivision::refine`]). Lee et al. (MAPS,
+//! SIGGRAPH 1998, §4) resolve a fold of the resampling by smoothing the parameterization
+//! around it; [`super::fold_repair`] does the same on the surface, vertex by vertex and disc
+//! by disc. Where that fails (thin parts of the input, coincident or folded-back sheets of
+//! non-manifold inputs), this pass replaces the fold's *subtree* by a plain subdivision of
+//! its ancestor: for the ancestor triangle `A` at level `m = L − 1, L − 2, …, 0`, every vertex
+//! created inside `A` or on its edges after level `m` is put back at the midpoint of its
+//! parent edge, coarse to fine (midpoint subdivision, Maret §3.2), either projected onto the
+//! input after each midpoint (a fresh resampling of the subtree, tried first) or left on the
+//! plane of `A` (whose faces keep `A`'s normal and its angles). The first level and variant
+//! whose change leaves no flipped or degenerate face among all faces around the moved
+//! vertices (inside `A` and around it) is kept; otherwise the one with the fewest, if fewer
+//! than before; otherwise nothing changes. Each change is measured over every face it can
+//! alter, so the number of bad faces only goes down.
+//!
+//! The connectivity is untouched; base vertices (level 0) never move. A flat subtree stands
+//! off a curved input by the chordal error of `A`, so the finest ancestors are tried first,
+//! and faces whose centroid ends farther from the input than the fold repair's tolerance
+//! count against a candidate as bad faces do.
+//!
+//! Measured at 5 levels over 200 base faces (`subwave remesh --levels 5 --base-faces 200
+//! --repair`, 2026-12-04), flipped + degenerate faces before → after: cheburashka 1 → 0
+//! (77.9 → 79.5 dB), suzanne 11 → 7, teapot 29 + 1 → 6 (84.5 → 86.8 dB), beetle 151 + 42 →
+//! 82 + 14 (77.8 → 79.7 dB); cow's 19 stay (its folds are in level-3 and level-4 triangles
+//! next to a base vertex, where every re-subdivision turns more faces over).
+
+use std::collections::{HashMap, HashSet};
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::fold_repair::{face_state, FaceState};
+use super::resample::Projector;
+use crate::topology::Topology;
+
+/// What [`flatten_folds`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AncestorFlatten {
+    /// Subtrees re-subdivided.
+    pub subtrees: usize,
+    /// Of them, left on their ancestor's plane (not projected onto the input).
+    pub flat: usize,
+    /// Vertices moved (with repeats).
+    pub moved: usize,
+    /// Flipped faces left (normal against the input's at the closest input point).
+    pub flipped_after: usize,
+    /// Degenerate faces left (as [`super::quality::Quality::degenerate`]).
+    pub degenerate_after: usize,
+}
+
+/// Whether a face state is bad here: flipped or touching the flip threshold, or degenerate.
+fn is_bad(s: &FaceState) -> bool {
+    s.0 <= 0.0 || s.2
+}
+
+/// Whether a face state counts against a candidate: bad, or its centroid farther than
+/// `off` from the input.
+fn counts_against(s: &FaceState, off: f64) -> bool {
+    is_bad(s) || s.3 > off
+}
+
+/// Re-subdivides the ancestors of the finest level's flipped and degenerate faces, as the
+/// module documentation describes, at most `passes` passes over the bad faces.
+///
+/// `topologies` are the hierarchy's levels `0..=L` of triangle splits (`topologies[l]` has
+/// `V_l` vertices, the first `V_{l−1}` being level `l − 1`'s, then one per edge of level
+/// `l − 1` in edge order); `pos` and `hints` (an input triangle near each vertex, updated
+/// for the moved ones) have `V_L` entries; `proj` is the input.
+///
+/// # Panics
+/// If the sizes disagree with `topologies`, or a level is not a 1-to-4 triangle split of
+/// the previous one.
+pub fn flatten_folds(
+    pos: &mut [DVec3],
+    hints: &mut [u32],
+    topologies: &[Topology],
+    proj: &Projector,
+    passes: u32,
+    off_surface: f64,
+) -> AncestorFlatten {
+    let levels = topologies.len() - 1;
+    let topo = &topologies[levels];
+    assert_eq!(
+        pos.len(),
+        topo.num_vertices as usize,
+        "positions per vertex"
+    );
+    assert_eq!(hints.len(), pos.len(), "hints per vertex");
+    for l in 1..=levels {
+        assert_eq!(
+            topologies[l].num_faces(),
+            4 * topologies[l - 1].num_faces(),
+            "level {l} is not a 1-to-4 split"
+        );
+    }
+    let mut state: Vec<FaceState> = (0..topo.num_faces())
+        .into_par_iter()
+        .map(|f| face_state(topo.face_vertices(f), pos, hints, proj))
+        .collect();
+    let mut out = AncestorFlatten::default();
+    // Level of each vertex: the first level that has it.
+    let starts: Vec<usize> = topologies.iter().map(|t| t.num_vertices as usize).collect();
+    let level_of = |w: usize| starts.partition_point(|&s| s <= w);
+    for _ in 0..passes {
+        let bad: Vec<u32> = (0..state.len() as u32)
+            .filter(|&f| is_bad(&state[f as usize]))
+            .collect();
+        let mut progress = false;
+        // Candidates (level, ancestor set) that removed nothing, until a change is made.
+        let mut failed = HashSet::new();
+        for f in bad {
+            if !is_bad(&state[f as usize]) {
+                continue; // fixed by an earlier subtree
+            }
+            if let Some((flat, moved)) = fix_face(
+                f as usize,
+                pos,
+                hints,
+                &mut state,
+                topologies,
+                proj,
+                &level_of,
+                off_surface,
+                &mut failed,
+            ) {
+                out.subtrees += 1;
+                out.flat += flat as usize;
+                out.moved += moved;
+                progress = true;
+            }
+        }
+        if !progress {
+            break;
+        }
+    }
+    out.flipped_after = state.iter().filter(|s| s.0 < 0.0).count();
+    out.degenerate_after = state.iter().filter(|s| s.2).count();
+    out
+}
+
+/// Largest number of finest faces under one candidate's ancestors.
+const MAX_REGION_FACES: usize = 1 << 12;
+
+/// The vertices a candidate re-subdivides: those created after level `m` all of whose
+/// finest faces descend from the level-`m` faces `set` (sorted); so every face around a
+/// moved vertex is inside the set's subtrees, and the set's outline stays where it is.
+fn region_of(set: &[u32], m: usize, topologies: &[Topology]) -> Vec<u32> {
+    let levels = topologies.len() - 1;
+    let topo = &topologies[levels];
+    let shift = 2 * (levels - m);
+    let per = 1usize << shift;
+    let first = topologies[m].num_vertices as usize;
+    let mut region: Vec<u32> = set
+        .iter()
+        .flat_map(|&a| a as usize * per..(a as usize + 1) * per)
+        .flat_map(|g| topo.face_vertices(g).iter().copied())
+        .filter(|&w| w as usize >= first)
+        .collect();
+    region.sort_unstable();
+    region.dedup();
+    region.retain(|&w| {
+        topo.vertex_faces(w as usize)
+            .iter()
+            .all(|&g| set.binary_search(&(g >> shift)).is_ok())
+    });
+    region
+}
+
+/// The candidate ancestor sets of finest face `f` at level `m`, smallest first: its
+/// ancestor `A`, `A` with the faces sharing an edge with it, and with those sharing a
+/// corner (each sorted; repeats and oversized sets left out).
+fn ancestor_sets(f: usize, m: usize, topologies: &[Topology]) -> Vec<Vec<u32>> {
+    let levels = topologies.len() - 1;
+    let coarse = &topologies[m];
+    let a = (f >> (2 * (levels - m))) as u32;
+    let corners = coarse.face_vertices(a as usize);
+    let mut around: Vec<u32> = corners
+        .iter()
+        .flat_map(|&c| coarse.vertex_faces(c as usize).iter().copied())
+        .collect();
+    around.sort_unstable();
+    around.dedup();
+    let edge_neighbours: Vec<u32> = around
+        .iter()
+        .copied()
+        .filter(|&g| {
+            let gv = coarse.face_vertices(g as usize);
+            g == a || gv.iter().filter(|v| corners.contains(v)).count() >= 2
+        })
+        .collect();
+    let mut sets: Vec<Vec<u32>> = Vec::with_capacity(3);
+    for set in [vec![a], edge_neighbours, around] {
+        if set.len() << (2 * (levels - m)) > MAX_REGION_FACES {
+            continue;
+        }
+        if sets.last() != Some(&set) {
+            sets.push(set);
+        }
+    }
+    sets
+}
+
+/// Tries the ancestors of finest face `f`, finest first (see the module documentation);
+/// keeps the best change, if any, and returns whether it is flat and how many vertices
+/// moved.
+#[allow(clippy::too_many_arguments)]
+fn fix_face(
+    f: usize,
+    pos: &mut [DVec3],
+    hints: &mut [u32],
+    state: &mut [FaceState],
+    topologies: &[Topology],
+    proj: &Projector,
+    level_of: &dyn Fn(usize) -> usize,
+    off: f64,
+    failed: &mut HashSet<(usize, Vec<u32>)>,
+) -> Option<(bool, usize)> {
+    let levels = topologies.len() - 1;
+    let topo = &topologies[levels];
+    // (bad faces removed, region, flat) of the best candidate so far.
+    let mut best: Option<(usize, Vec<u32>, bool)> = None;
+    'levels: for m in (0..levels).rev() {
+        for set in ancestor_sets(f, m, topologies) {
+            let key = (m, set);
+            if failed.contains(&key) {
+                continue;
+            }
+            let set = &key.1;
+            let region = region_of(set, m, topologies);
+            if region.is_empty() {
+                continue;
+            }
+            let mut touched: Vec<u32> = region
+                .iter()
+                .flat_map(|&w| topo.vertex_faces(w as usize).iter().copied())
+                .collect();
+            touched.sort_unstable();
+            touched.dedup();
+            let before = touched
+                .iter()
+                .filter(|&&g| counts_against(&state[g as usize], off))
+                .count();
+            if !touched.iter().any(|&g| is_bad(&state[g as usize])) {
+                continue; // the fold is not under this set
+            }
+            let mut helped = false;
+            for flat in [false, true] {
+                let (new_pos, new_hints) =
+                    resubdivide(&region, pos, hints, topologies, proj, level_of, flat);
+                let after = count_bad(
+                    &region, &new_pos, &new_hints, &touched, pos, hints, topo, proj, off,
+                );
+                tracing::trace!(
+                    f,
+                    m,
+                    set = set.len(),
+                    flat,
+                    before,
+                    after,
+                    "ancestor candidate"
+                );
+                helped |= after < before;
+                if after < before && best.as_ref().is_none_or(|b| before - after > b.0) {
+                    best = Some((before - after, region.clone(), flat));
+                }
+                if after == 0 {
+                    break 'levels;
+                }
+            }
+            if !helped {
+                failed.insert(key);
+            }
+        }
+    }
+    let (_, region, flat) = best?;
+    failed.clear();
+    let (new_pos, new_hints) = resubdivide(&region, pos, hints, topologies, proj, level_of, flat);
+    for (k, &w) in region.iter().enumerate() {
+        pos[w as usize] = new_pos[k];
+        hints[w as usize] = new_hints[k];
+    }
+    let mut touched: Vec<u32> = region
+        .iter()
+        .flat_map(|&w| topo.vertex_faces(w as usize).iter().copied())
+        .collect();
+    touched.sort_unstable();
+    touched.dedup();
+    for &g in &touched {
+        state[g as usize] = face_state(topo.face_vertices(g as usize), pos, hints, proj);
+    }
+    Some((flat, region.len()))
+}
+
+/// New positions and hints of the `region` vertices (sorted ascending, all created after
+/// their ancestor's level): each at the midpoint of its parent edge's ends (their new
+/// positions when they are in the region), projected onto the input unless `flat`.
+fn resubdivide(
+    region: &[u32],
+    pos: &[DVec3],
+    hints: &[u32],
+    topologies: &[Topology],
+    proj: &Projector,
+    level_of: &dyn Fn(usize) -> usize,
+    flat: bool,
+) -> (Vec<DVec3>, Vec<u32>) {
+    let index: HashMap<u32, usize> = region.iter().enumerate().map(|(k, &w)| (w, k)).collect();
+    let mut new_pos = Vec::with_capacity(region.len());
+    let mut new_hints = Vec::with_capacity(region.len());
+    for &w in region {
+        let w = w as usize;
+        let l = level_of(w); // w is a vertex of level l, created on an edge of level l − 1
+        let parent = &topologies[l - 1];
+        let e = w - parent.num_vertices as usize;
+        let ends = parent.edge_vertices[e];
+        let at = |v: u32| index.get(&v).map_or(pos[v as usize], |&k| new_pos[k]);
+        let hint_of = |v: u32| index.get(&v).map_or(hints[v as usize], |&k| new_hints[k]);
+        let mid = 0.5 * (at(ends[0]) + at(ends[1]));
+        let near = [hints[w], hint_of(ends[0]), hint_of(ends[1])];
+        let (q, t) = proj.closest_near(mid, &near);
+        new_pos.push(if flat { mid } else { q });
+        new_hints.push(t);
+    }
+    (new_pos, new_hints)
+}
+
+/// Faces among `touched` that are bad or farther than `off` from the input, with the
+/// `region` vertices at `new_pos` (hints `new_hints`).
+#[allow(clippy::too_many_arguments)]
+fn count_bad(
+    region: &[u32],
+    new_pos: &[DVec3],
+    new_hints: &[u32],
+    touched: &[u32],
+    pos: &[DVec3],
+    hints: &[u32],
+    topo: &Topology,
+    proj: &Projector,
+    off: f64,
+) -> usize {
+    let index: HashMap<u32, usize> = region.iter().enumerate().map(|(k, &w)| (w, k)).collect();
+    touched
+        .par_iter()
+        .with_min_len(64)
+        .filter(|&&g| {
+            let fv = topo.face_vertices(g as usize);
+            let mut local_pos = [DVec3::ZERO; 3];
+            let mut local_hints = [u32::MAX; 3];
+            for (i, &v) in fv.iter().take(3).enumerate() {
+                (local_pos[i], local_hints[i]) = match index.get(&v) {
+                    Some(&k) => (new_pos[k], new_hints[k]),
+                    None => (pos[v as usize], hints[v as usize]),
+                };
+            }
+            counts_against(&face_state(&[0, 1, 2], &local_pos, &local_hints, proj), off)
+        })
+        .count()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::generate;
+    use crate::hierarchy::Hierarchy;
+    use crate::subdivision::{subdivide, Scheme, SubdivideOptions};
+
+    /// A 3-level midpoint subdivision of an icosphere projected onto the unit sphere, with a
+    /// fold made by pushing one finest vertex across its neighbours: the pass removes the
+    /// fold, moves no base vertex, and leaves no bad face.
+    #[test]
+    fn removes_a_fold_and_keeps_the_base() {
+        let base = generate::icosphere(0);
+        let opts = SubdivideOptions {
+            scheme: Scheme::Midpoint,
+            levels: 3,
+            ..Default::default()
+        };
+        let fine = subdivide(&base, &opts).unwrap();
+        let (h, _) = Hierarchy::detect(&fine, None).unwrap();
+        let input = generate::icosphere(4);
+        let tris: Vec<[u32; 3]> = (0..input.num_faces())
+            .map(|f| {
+                let v = input.face(f);
+                [v[0], v[1], v[2]]
+            })
+            .collect();
+        let proj = Projector::new(&input.positions, &tris).unwrap();
+        let mut pos: Vec<DVec3> = h
+            .positions
+            .iter()
+            .map(|p| proj.closest(p.normalize()).0)
+            .collect();
+        let mut hints: Vec<u32> = pos.iter().map(|&p| proj.closest(p).1).collect();
+        let topo = &h.topologies[3];
+        // Fold: a finest vertex pushed far across its one-ring.
+        let v = topo.num_vertices as usize - 7;
+        let ring: Vec<u32> = topo
+            .vertex_faces(v)
+            .iter()
+            .flat_map(|&f| topo.face_vertices(f as usize).iter().copied())
+            .filter(|&w| w as usize != v)
+            .collect();
+        let c = ring.iter().map(|&w| pos[w as usize]).sum::<DVec3>() / ring.len() as f64;
+        let far = pos[ring[0] as usize];
+        pos[v] = proj.closest(c + 2.5 * (far - c)).0;
+        hints[v] = proj.closest(pos[v]).1;
+        let bad_before = (0..topo.num_faces())
+            .filter(|&f| is_bad(&face_state(topo.face_vertices(f), &pos, &hints, &proj)))
+            .count();
+        assert!(bad_before > 0, "the test must start with a fold");
+        let nb = h.topologies[0].num_vertices as usize;
+        let base_before = pos[..nb].to_vec();
+        let r = flatten_folds(&mut pos, &mut hints, &h.topologies, &proj, 2, f64::INFINITY);
+        assert_eq!((r.flipped_after, r.degenerate_after), (0, 0), "{r:?}");
+        assert!(r.subtrees >= 1 && r.moved >= 1, "{r:?}");
+        assert_eq!(&pos[..nb], &base_before[..]);
+        let bad_after = (0..topo.num_faces())
+            .filter(|&f| is_bad(&face_state(topo.face_vertices(f), &pos, &hints, &proj)))
+            .count();
+        assert_eq!(bad_after, 0);
+        // The fold's vertex went back near its ring.
+        assert!(pos[v].distance(c) < far.distance(c), "{:?}", pos[v]);
+    }
+
+    /// Nothing to do on a clean remesh: positions unchanged, counts zero.
+    #[test]
+    fn leaves_a_clean_mesh_alone() {
+        let base = generate::icosphere(0);
+        let opts = SubdivideOptions {
+            scheme: Scheme::Midpoint,
+            levels: 2,
+            ..Default::default()
+        };
+        let fine = subdivide(&base, &opts).unwrap();
+        let (h, _) = Hierarchy::detect(&fine, None).unwrap();
+        let tris: Vec<[u32; 3]> = (0..fine.num_faces())
+            .map(|f| {
+                let v = fine.face(f);
+                [v[0], v[1], v[2]]
+            })
+            .collect();
+        let proj = Projector::new(&fine.positions, &tris).unwrap();
+        let mut pos = h.positions.clone();
+        let mut hints: Vec<u32> = pos.iter().map(|&p| proj.closest(p).1).collect();
+        let r = flatten_folds(&mut pos, &mut hints, &h.topologies, &proj, 2, f64::INFINITY);
+        assert_eq!(r, AncestorFlatten::default());
+        assert_eq!(pos, h.positions);
+    }
+}
