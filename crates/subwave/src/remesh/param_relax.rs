@@ -296,10 +296,11 @@ fn step(
                     return None;
                 }
                 let t = next[c[0]].face;
-                let b: Option<Vec<[f64; 3]>> =
-                    c.iter().map(|&w| map.to_frame(t, &next[w])).collect();
-                let ok = b.is_some_and(|b| orient(b[0], b[1], b[2]) > 0.0)
-                    && upright(c.map(|w| images[w]), c.map(|w| next_images[w]));
+                let frame = |k: usize| map.to_frame(t, &next[c[k]]);
+                let ok = matches!(
+                    (frame(0), frame(1), frame(2)),
+                    (Some(a), Some(b), Some(d)) if orient(a, b, d) > 0.0
+                ) && upright(c.map(|w| images[w]), c.map(|w| next_images[w]));
                 (!ok).then_some(f as u32)
             })
             .collect();
