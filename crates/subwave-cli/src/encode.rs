@@ -201,6 +201,24 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     if let Some(rms) = prepared.remesh_rms {
         println!("{}", print::remesh_distance(rms, mesh.diagonal()));
     }
+    if prepared.input_distance.is_some() || !prepared.missed_levels.is_empty() {
+        println!(
+            "{}",
+            print::input_distance(
+                prepared.input_distance,
+                mesh.diagonal(),
+                &prepared.missed_levels
+            )
+        );
+    }
+    if let Some(d) = prepared.input_distance {
+        if d.1 > subwave::codec::prepare::MISS_FRACTION * mesh.diagonal() {
+            tracing::warn!(
+                "{name}: the remesh misses part of the input (Hausdorff {:.1}% of the diagonal): raise --levels or --base-faces",
+                100.0 * d.1 / mesh.diagonal()
+            );
+        }
+    }
     let mut opts = prepared.encode_options();
     let h = prepared.hierarchy;
     if let Some(w) = args.wavelet {

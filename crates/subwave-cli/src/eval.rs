@@ -128,6 +128,12 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         prepare(&mesh, &args.prep.options(quads), cb)
     })
     .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    if !args.json && (prep.input_distance.is_some() || !prep.missed_levels.is_empty()) {
+        println!(
+            "{}",
+            print::input_distance(prep.input_distance, mesh.diagonal(), &prep.missed_levels)
+        );
+    }
     if let (Some(n), false) = (&prep.normal, args.json) {
         println!("{}", print::normal_stats(n));
     } else if let (Some(f), false) = (&prep.fit, args.json) {
@@ -194,6 +200,9 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             "sharp_angle": prep.sharp_angle,
             "features_detected": prep.features_detected,
             "remesh_rms": prep.remesh_rms,
+            "input_rms": prep.input_distance.map(|d| d.0),
+            "input_max": prep.input_distance.map(|d| d.1),
+            "missed_levels": prep.missed_levels,
             "levels": h.levels(),
             "base_faces": h.base.num_faces(),
             "coded_vertices": h.positions.len(),

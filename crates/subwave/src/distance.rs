@@ -67,8 +67,12 @@ pub struct Distance {
     pub ba: OneSided,
 }
 
-/// The triangles of a mesh (polygons fanned), checked non-empty.
-fn triangles(mesh: &Mesh, which: &str) -> Result<Vec<[u32; 3]>> {
+/// The triangles of a mesh (polygons fanned), checked non-empty; `which` names the mesh in
+/// the error.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for a mesh without faces; [`Mesh::check_indices`]'s errors.
+pub fn triangles(mesh: &Mesh, which: &str) -> Result<Vec<[u32; 3]>> {
     mesh.check_indices()?;
     let (tris, _) = mesh.triangulate();
     if tris.is_empty() {

@@ -609,3 +609,33 @@ fn closest_near_keeps_the_hinted_sheet_on_coincident_sheets() {
     let below = DVec3::new(0.3, 0.6, -2.0 * wide);
     assert!(proj.closest_near(below, &[1]).1 >= 2);
 }
+
+/// With default levels, a remesh that misses part of the input is redone one level finer:
+/// the cow's 3-level remesh over 200 base faces passes its tail between two samples
+/// (Hausdorff from the input 8.9% of the diagonal), the 4-level one still 3.3%, so the codec
+/// codes 5 levels; given levels are kept, and the miss is reported.
+#[test]
+fn corpus_prepare_remeshes_finer_where_the_remesh_misses_the_input() {
+    use subwave::codec::prepare::{prepare, PrepareOptions, MISS_FRACTION};
+    let Some(input) = corpus("cow.obj") else {
+        return;
+    };
+    let opts = PrepareOptions {
+        normal: Some(false),
+        fit: false,
+        ..PrepareOptions::default()
+    };
+    let p = prepare(&input, &opts, &mut |_, _| {}).unwrap();
+    assert_eq!(p.missed_levels, vec![3, 4]);
+    assert_eq!(p.hierarchy.levels(), 5);
+    let given = PrepareOptions {
+        levels: Some(3),
+        ..opts
+    };
+    let p = prepare(&input, &given, &mut |_, _| {}).unwrap();
+    assert!(p.missed_levels.is_empty());
+    assert_eq!(p.hierarchy.levels(), 3);
+    let (rms, max) = p.input_distance.expect("measured on a coarse remesh");
+    assert!(max > MISS_FRACTION * input.diagonal(), "{max}");
+    assert!(rms > p.remesh_rms.unwrap(), "{rms}");
+}
