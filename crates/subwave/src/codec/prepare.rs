@@ -292,12 +292,12 @@ pub fn prepare(
             .unwrap_or_else(|e| std::panic::resume_unwind(e));
         (r, surface, bvh, samples)
     });
+    let mut r = first?;
     let surface = surface.transpose()?;
     let (input_bvh, input_samples) = (input_bvh?, input_samples?);
     let diagonal = mesh.diagonal();
     let mut missed_levels = Vec::new();
     let mut distance_ms = 0.0;
-    let mut r = first?;
     loop {
         let (mut normal, mut fit) = (None, None);
         if let Some(surface) = &surface {
