@@ -235,12 +235,7 @@ fn fix_face(
             if region.is_empty() {
                 continue;
             }
-            let mut touched: Vec<u32> = region
-                .iter()
-                .flat_map(|&w| topo.vertex_faces(w as usize).iter().copied())
-                .collect();
-            touched.sort_unstable();
-            touched.dedup();
+            let touched = faces_around(&region, topo);
             let before = touched
                 .iter()
                 .filter(|&&g| counts_against(&state[g as usize], off))
@@ -284,16 +279,22 @@ fn fix_face(
         pos[w as usize] = new_pos[k];
         hints[w as usize] = new_hints[k];
     }
-    let mut touched: Vec<u32> = region
-        .iter()
-        .flat_map(|&w| topo.vertex_faces(w as usize).iter().copied())
-        .collect();
-    touched.sort_unstable();
-    touched.dedup();
-    for &g in &touched {
+    for &g in &faces_around(&region, topo) {
         state[g as usize] = face_state(topo.face_vertices(g as usize), pos, hints, proj);
     }
     Some((flat, region.len()))
+}
+
+/// The faces around the vertices of `region` (sorted, distinct): every face a move of them
+/// can change.
+fn faces_around(region: &[u32], topo: &Topology) -> Vec<u32> {
+    let mut faces: Vec<u32> = region
+        .iter()
+        .flat_map(|&w| topo.vertex_faces(w as usize).iter().copied())
+        .collect();
+    faces.sort_unstable();
+    faces.dedup();
+    faces
 }
 
 /// New positions and hints of the `region` vertices (sorted ascending, all created after
@@ -366,29 +367,38 @@ mod tests {
     use super::*;
     use crate::generate;
     use crate::hierarchy::Hierarchy;
+    use crate::mesh::Mesh;
     use crate::subdivision::{subdivide, Scheme, SubdivideOptions};
+
+    /// The hierarchy of an icosahedron split `levels` times by midpoints, and its finest mesh.
+    fn midpoint_icosahedron(levels: u32) -> (Hierarchy, Mesh) {
+        let opts = SubdivideOptions {
+            scheme: Scheme::Midpoint,
+            levels,
+            ..Default::default()
+        };
+        let fine = subdivide(&generate::icosphere(0), &opts).unwrap();
+        (Hierarchy::detect(&fine, None).unwrap().0, fine)
+    }
+
+    /// The closest-point index of triangle mesh `m`.
+    fn projector(m: &Mesh) -> Projector {
+        let tris: Vec<[u32; 3]> = (0..m.num_faces())
+            .map(|f| {
+                let v = m.face(f);
+                [v[0], v[1], v[2]]
+            })
+            .collect();
+        Projector::new(&m.positions, &tris).unwrap()
+    }
 
     /// A 3-level midpoint subdivision of an icosphere projected onto the unit sphere, with a
     /// fold made by pushing one finest vertex across its neighbours: the pass removes the
     /// fold, moves no base vertex, and leaves no bad face.
     #[test]
     fn removes_a_fold_and_keeps_the_base() {
-        let base = generate::icosphere(0);
-        let opts = SubdivideOptions {
-            scheme: Scheme::Midpoint,
-            levels: 3,
-            ..Default::default()
-        };
-        let fine = subdivide(&base, &opts).unwrap();
-        let (h, _) = Hierarchy::detect(&fine, None).unwrap();
-        let input = generate::icosphere(4);
-        let tris: Vec<[u32; 3]> = (0..input.num_faces())
-            .map(|f| {
-                let v = input.face(f);
-                [v[0], v[1], v[2]]
-            })
-            .collect();
-        let proj = Projector::new(&input.positions, &tris).unwrap();
+        let (h, _) = midpoint_icosahedron(3);
+        let proj = projector(&generate::icosphere(4));
         let mut pos: Vec<DVec3> = h
             .positions
             .iter()
@@ -429,21 +439,8 @@ mod tests {
     /// Nothing to do on a clean remesh: positions unchanged, counts zero.
     #[test]
     fn leaves_a_clean_mesh_alone() {
-        let base = generate::icosphere(0);
-        let opts = SubdivideOptions {
-            scheme: Scheme::Midpoint,
-            levels: 2,
-            ..Default::default()
-        };
-        let fine = subdivide(&base, &opts).unwrap();
-        let (h, _) = Hierarchy::detect(&fine, None).unwrap();
-        let tris: Vec<[u32; 3]> = (0..fine.num_faces())
-            .map(|f| {
-                let v = fine.face(f);
-                [v[0], v[1], v[2]]
-            })
-            .collect();
-        let proj = Projector::new(&fine.positions, &tris).unwrap();
+        let (h, fine) = midpoint_icosahedron(2);
+        let proj = projector(&fine);
         let mut pos = h.positions.clone();
         let mut hints: Vec<u32> = pos.iter().map(|&p| proj.closest(p).1).collect();
         let r = flatten_folds(&mut pos, &mut hints, &h.topologies, &proj, 2, f64::INFINITY);
