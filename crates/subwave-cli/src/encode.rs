@@ -175,8 +175,14 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
             t.param_relax_ms,
             t.resample_ms,
             t.relax_ms,
-            // What follows the remesh: the normal re-sampling, if it ran.
-            if prepared.normal.is_some() { "normal" } else { "hand-over" },
+            // What follows the remesh: the normal re-sampling, if it ran (and the remeshes
+            // that missed part of the input before the one kept).
+            match (prepared.normal.is_some(), prepared.missed_levels.is_empty()) {
+                (true, true) => "normal",
+                (false, true) => "hand-over",
+                (true, false) => "earlier remeshes and normal",
+                (false, false) => "earlier remeshes and hand-over",
+            },
             prepare_ms - t.total_ms - prepared.distance_ms,
             prepared.distance_ms
         )
