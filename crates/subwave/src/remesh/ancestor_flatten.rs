@@ -26,8 +26,9 @@
 //! Measured at 5 levels over 200 base faces (`subwave remesh --levels 5 --base-faces 200
 //! --repair`, 2026-12-04), flipped + degenerate faces before → after: cheburashka 1 → 0
 //! (77.9 → 79.5 dB), suzanne 11 → 7, teapot 29 + 1 → 6 (84.5 → 86.8 dB), beetle 151 + 42 →
-//! 82 + 14 (77.8 → 79.7 dB); cow's 19 stay (its folds are in level-3 and level-4 triangles
-//! next to a base vertex, where every re-subdivision turns more faces over).
+//! 82 + 14 (77.8 → 79.7 dB); cow's 19 stay (its folds are on its thin tail, in level-3 and
+//! level-4 triangles next to a base vertex, where every re-subdivision turns more faces
+//! over).
 
 use std::collections::{HashMap, HashSet};
 
