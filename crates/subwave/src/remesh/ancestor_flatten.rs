@@ -8,14 +8,16 @@
 //! around it; [`super::fold_repair`] does the same on the surface, vertex by vertex and disc
 //! by disc. Where that fails (thin parts of the input, coincident or folded-back sheets of
 //! non-manifold inputs), this pass replaces the fold's *subtree* by a plain subdivision of
-//! its ancestor: for the ancestor triangle `A` at level `m = L − 1, L − 2, …, 0`, every vertex
-//! created inside `A` or on its edges after level `m` is put back at the midpoint of its
-//! parent edge, coarse to fine (midpoint subdivision, Maret §3.2), either projected onto the
-//! input after each midpoint (a fresh resampling of the subtree, tried first) or left on the
-//! plane of `A` (whose faces keep `A`'s normal and its angles). The first level and variant
-//! whose change leaves no flipped or degenerate face among all faces around the moved
-//! vertices (inside `A` and around it) is kept; otherwise the one with the fewest, if fewer
-//! than before; otherwise nothing changes. Each change is measured over every face it can
+//! its ancestors. At each level `m = L − 1, L − 2, …, 0` it tries three sets of level-`m`
+//! triangles: the fold's ancestor `A`, `A` with the triangles sharing an edge with it, and
+//! `A` with those sharing a corner. Every vertex created after level `m` strictly inside a
+//! set (all its faces descend from the set, so the set's outline stays where it is) is put
+//! back at the midpoint of its parent edge, coarse to fine (midpoint subdivision, Maret
+//! §3.2), either projected onto the input after each midpoint (a fresh resampling of the
+//! subtrees, tried first) or left on the planes of the set's triangles (whose faces keep
+//! their normals and angles). The first candidate that leaves no bad face among all faces
+//! around the moved vertices is kept; otherwise the one that removes the most, if any
+//! removes one; otherwise nothing changes. Each change is measured over every face it can
 //! alter, so the number of bad faces only goes down.
 //!
 //! The connectivity is untouched; base vertices (level 0) never move. A flat subtree stands
@@ -223,8 +225,8 @@ fn fix_face(
 ) -> Option<(bool, usize)> {
     let levels = topologies.len() - 1;
     let topo = &topologies[levels];
-    // (bad faces removed, region, flat) of the best candidate so far.
-    let mut best: Option<(usize, Vec<u32>, bool)> = None;
+    // (bad faces removed, candidate) of the best candidate so far.
+    let mut best: Option<(usize, Candidate)> = None;
     'levels: for m in (0..levels).rev() {
         for set in ancestor_sets(f, m, topologies) {
             let key = (m, set);
@@ -246,11 +248,8 @@ fn fix_face(
             }
             let mut helped = false;
             for flat in [false, true] {
-                let (new_pos, new_hints) =
-                    resubdivide(&region, pos, hints, topologies, proj, level_of, flat);
-                let after = count_bad(
-                    &region, &new_pos, &new_hints, &touched, pos, hints, topo, proj, off,
-                );
+                let c = resubdivide(&region, pos, hints, topologies, proj, level_of, flat);
+                let after = count_bad(&c, &touched, pos, hints, topo, proj, off);
                 tracing::trace!(
                     f,
                     m,
@@ -262,7 +261,7 @@ fn fix_face(
                 );
                 helped |= after < before;
                 if after < before && best.as_ref().is_none_or(|b| before - after > b.0) {
-                    best = Some((before - after, region.clone(), flat));
+                    best = Some((before - after, c));
                 }
                 if after == 0 {
                     break 'levels;
@@ -273,17 +272,16 @@ fn fix_face(
             }
         }
     }
-    let (_, region, flat) = best?;
+    let (_, c) = best?;
     failed.clear();
-    let (new_pos, new_hints) = resubdivide(&region, pos, hints, topologies, proj, level_of, flat);
-    for (k, &w) in region.iter().enumerate() {
-        pos[w as usize] = new_pos[k];
-        hints[w as usize] = new_hints[k];
+    for (k, &w) in c.region.iter().enumerate() {
+        pos[w as usize] = c.pos[k];
+        hints[w as usize] = c.hints[k];
     }
-    for &g in &faces_around(&region, topo) {
+    for &g in &faces_around(&c.region, topo) {
         state[g as usize] = face_state(topo.face_vertices(g as usize), pos, hints, proj);
     }
-    Some((flat, region.len()))
+    Some((c.flat, c.region.len()))
 }
 
 /// The faces around the vertices of `region` (sorted, distinct): every face a move of them
@@ -298,6 +296,28 @@ fn faces_around(region: &[u32], topo: &Topology) -> Vec<u32> {
     faces
 }
 
+/// A re-subdivision of a region: its vertices (sorted), their places in it, and their new
+/// positions and hints.
+struct Candidate {
+    region: Vec<u32>,
+    index: HashMap<u32, usize>,
+    pos: Vec<DVec3>,
+    hints: Vec<u32>,
+    flat: bool,
+}
+
+impl Candidate {
+    /// The position and hint of vertex `v`: new if it is in the region, else from `pos`
+    /// and `hints`.
+    fn at(&self, v: u32, pos: &[DVec3], hints: &[u32]) -> (DVec3, u32) {
+        self.index
+            .get(&v)
+            .map_or((pos[v as usize], hints[v as usize]), |&k| {
+                (self.pos[k], self.hints[k])
+            })
+    }
+}
+
 /// New positions and hints of the `region` vertices (sorted ascending, all created after
 /// their ancestor's level): each at the midpoint of its parent edge's ends (their new
 /// positions when they are in the region), projected onto the input unless `flat`.
@@ -309,34 +329,34 @@ fn resubdivide(
     proj: &Projector,
     level_of: &dyn Fn(usize) -> usize,
     flat: bool,
-) -> (Vec<DVec3>, Vec<u32>) {
-    let index: HashMap<u32, usize> = region.iter().enumerate().map(|(k, &w)| (w, k)).collect();
-    let mut new_pos = Vec::with_capacity(region.len());
-    let mut new_hints = Vec::with_capacity(region.len());
+) -> Candidate {
+    let mut c = Candidate {
+        region: region.to_vec(),
+        index: region.iter().enumerate().map(|(k, &w)| (w, k)).collect(),
+        pos: Vec::with_capacity(region.len()),
+        hints: Vec::with_capacity(region.len()),
+        flat,
+    };
     for &w in region {
         let w = w as usize;
         let l = level_of(w); // w is a vertex of level l, created on an edge of level l − 1
         let parent = &topologies[l - 1];
         let e = w - parent.num_vertices as usize;
         let ends = parent.edge_vertices[e];
-        let at = |v: u32| index.get(&v).map_or(pos[v as usize], |&k| new_pos[k]);
-        let hint_of = |v: u32| index.get(&v).map_or(hints[v as usize], |&k| new_hints[k]);
-        let mid = 0.5 * (at(ends[0]) + at(ends[1]));
-        let near = [hints[w], hint_of(ends[0]), hint_of(ends[1])];
-        let (q, t) = proj.closest_near(mid, &near);
-        new_pos.push(if flat { mid } else { q });
-        new_hints.push(t);
+        let (pa, ha) = c.at(ends[0], pos, hints);
+        let (pb, hb) = c.at(ends[1], pos, hints);
+        let mid = 0.5 * (pa + pb);
+        let (q, t) = proj.closest_near(mid, &[hints[w], ha, hb]);
+        c.pos.push(if flat { mid } else { q });
+        c.hints.push(t);
     }
-    (new_pos, new_hints)
+    c
 }
 
 /// Faces among `touched` that are bad or farther than `off` from the input, with the
-/// `region` vertices at `new_pos` (hints `new_hints`).
-#[allow(clippy::too_many_arguments)]
+/// candidate's vertices at their new positions.
 fn count_bad(
-    region: &[u32],
-    new_pos: &[DVec3],
-    new_hints: &[u32],
+    c: &Candidate,
     touched: &[u32],
     pos: &[DVec3],
     hints: &[u32],
@@ -344,7 +364,6 @@ fn count_bad(
     proj: &Projector,
     off: f64,
 ) -> usize {
-    let index: HashMap<u32, usize> = region.iter().enumerate().map(|(k, &w)| (w, k)).collect();
     touched
         .par_iter()
         .with_min_len(64)
@@ -353,10 +372,7 @@ fn count_bad(
             let mut local_pos = [DVec3::ZERO; 3];
             let mut local_hints = [u32::MAX; 3];
             for (i, &v) in fv.iter().take(3).enumerate() {
-                (local_pos[i], local_hints[i]) = match index.get(&v) {
-                    Some(&k) => (new_pos[k], new_hints[k]),
-                    None => (pos[v as usize], hints[v as usize]),
-                };
+                (local_pos[i], local_hints[i]) = c.at(v, pos, hints);
             }
             counts_against(&face_state(&[0, 1, 2], &local_pos, &local_hints, proj), off)
         })
