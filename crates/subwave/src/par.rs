@@ -91,6 +91,22 @@ where
     out
 }
 
+/// Hints the processor to fetch `x`'s cache line (nothing where `x` is `None`, or off x86-64).
+#[inline(always)]
+pub(crate) fn prefetch<T>(x: Option<&T>) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(x) = x {
+        // SAFETY: a prefetch reads nothing architecturally and cannot fault; `x` is a valid
+        // reference anyway.
+        unsafe {
+            use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            _mm_prefetch::<_MM_HINT_T0>(std::ptr::from_ref(x).cast::<i8>());
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
+}
+
 #[cfg(test)]
 mod tests {
     use super::par_vec;

@@ -30,6 +30,7 @@ use super::rules::{
     child_edge_sharpness, decrement, Creasing, EdgeMask, EdgeNeighborhood, EndRing, Rule, Rules,
     Sector, VertexMask, VertexNeighborhood,
 };
+use crate::par::prefetch;
 use crate::topology::Topology;
 
 /// Child vertices per parallel work item.
@@ -765,6 +766,64 @@ fn other_end(topo: &Topology, e: usize, v: u32) -> u32 {
 }
 
 impl Level<'_> {
+    /// Prefetches (a hint, no effect on results) for [`level_apply`]: the table entries that
+    /// locate the sources of vertex or edge child `far` (its ring edges' ends, its edge's
+    /// faces' corners), and the source values of child `near`, from the parent's `src` and the
+    /// trailing children's `tail`. Children past the vertex and edge points are ignored.
+    #[inline(always)]
+    fn prefetch<T>(&self, far: usize, near: usize, src: &[T], tail: &[T]) {
+        let topo = self.topo;
+        let (nv, ne) = (self.nv, self.ne);
+        if far < nv {
+            for &e in topo.vertex_edges(far) {
+                prefetch(topo.edge_vertices.get(e as usize));
+            }
+        } else if far < nv + ne && self.split == Split::Triangles {
+            for &f in topo.edge_faces(far - nv) {
+                prefetch(topo.face_vertices.get(3 * f as usize));
+            }
+        }
+        if near < nv {
+            for &e in topo.vertex_edges(near) {
+                let [a, b] = topo.edge_vertices[e as usize];
+                prefetch(src.get((a ^ b ^ near as u32) as usize));
+            }
+            if self.vertex_faces && !tail.is_empty() {
+                for &f in topo.vertex_faces(near) {
+                    prefetch(tail.get(f as usize));
+                }
+            }
+        } else if near < nv + ne {
+            let e = near - nv;
+            let [a, b] = topo.edge_vertices[e];
+            prefetch(src.get(a as usize));
+            prefetch(src.get(b as usize));
+            for &f in topo.edge_faces(e) {
+                if self.split == Split::Triangles {
+                    if let Some(fv) = topo.face_vertices.get(3 * f as usize..3 * f as usize + 3) {
+                        let o = fv[0] ^ fv[1] ^ fv[2] ^ a ^ b;
+                        prefetch(src.get(o as usize));
+                    }
+                } else {
+                    prefetch(tail.get(f as usize));
+                }
+            }
+        }
+    }
+
+    /// Prefetches the corners' values of face point `j` (a child past the vertex and edge
+    /// points; others are ignored) for [`level_apply`].
+    #[inline(always)]
+    fn prefetch_face<T>(&self, j: usize, src: &[T]) {
+        if let Some(f) = j.checked_sub(self.nv + self.ne) {
+            if f < self.topo.num_faces() {
+                for &v in self.topo.face_vertices(f) {
+                    prefetch(src.get(v as usize));
+                }
+            }
+        }
+    }
+
     /// Child `j`'s value by a [`Fast`] recipe, bit-identical to evaluating
     /// [`Level::stencil`] on the parent values `src` and the trailing children's values
     /// `tail` ([`Level::child_sources`]; empty while they are computed); `None` where no
@@ -1037,19 +1096,42 @@ pub fn level_apply<T: Interpolate>(topo: &Topology, ctx: &LevelContext, src: &[T
             s.b.eval(src, tail)
         })
     };
+    // The fast paths' time goes into chains of dependent loads (a vertex's edges, their ends,
+    // the ends' values) that miss the cache at the finest levels. Each child first prefetches
+    // the values of the child PREFETCH_NEAR places ahead and the tables of the one
+    // PREFETCH_FAR ahead (whose values it then finds in cache PREFETCH_NEAR places later):
+    // the bunny's third Catmull-Clark level, 50 → 36–40 ms.
+    let prefetching = level.split != Split::QuadTri;
     let (n, late) = (level.n_child, level.child_sources());
+    let head = |s: &mut Scratch, j: usize, tail: &[T]| {
+        if prefetching {
+            level.prefetch(j + PREFETCH_FAR, j + PREFETCH_NEAR, src, tail);
+        }
+        value(s, j, tail)
+    };
     if late == 0 {
-        return crate::par::par_vec(n, CHUNK, Scratch::default, |s, j| value(s, j, &[]));
+        return crate::par::par_vec(n, CHUNK, Scratch::default, |s, j| head(s, j, &[]));
     }
     crate::par::par_vec_tail_first(
         n,
         late,
         CHUNK,
         Scratch::default,
-        |s, k| value(s, n - late + k, &[]),
-        value,
+        |s, k| {
+            let j = n - late + k;
+            if prefetching {
+                level.prefetch_face(j + PREFETCH_NEAR, src);
+            }
+            value(s, j, &[])
+        },
+        head,
     )
 }
+
+/// How many children ahead [`level_apply`] prefetches the values a child reads.
+const PREFETCH_NEAR: usize = 8;
+/// How many children ahead [`level_apply`] prefetches the table entries that locate them.
+const PREFETCH_FAR: usize = 16;
 
 #[cfg(test)]
 mod tests {
