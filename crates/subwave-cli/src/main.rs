@@ -537,6 +537,18 @@ fn main() -> ExitCode {
     // Usage errors, --help and --version exit here with clap's codes (2 for usage errors).
     let cli = Cli::parse();
     init_logging();
+    // Only refinement writes buffers large and full enough to gain from transparent huge
+    // pages; for the rest (remeshing above all) they cost more kernel time than they save
+    // (`subwave::alloc::disable_huge_pages`). A refusal is not an error: only slower.
+    let refines = matches!(
+        cli.command,
+        Command::Subdivide(_) | Command::Bench(BenchCommand::Subdivide(_))
+    );
+    if !refines {
+        if let Err(e) = subwave::alloc::disable_huge_pages() {
+            tracing::debug!("transparent huge pages stay enabled: {e}");
+        }
+    }
     let result = match cli.command {
         Command::Info(args) => info::run(&args),
         Command::Convert(args) => convert::run(&args),
