@@ -37,7 +37,7 @@ use std::collections::{HashMap, HashSet};
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::fold_repair::{face_state, FaceState};
+use super::fold_repair::{face_state, faces_around, FaceState};
 use super::resample::Projector;
 use crate::topology::Topology;
 
@@ -182,12 +182,7 @@ fn ancestor_sets(f: usize, m: usize, topologies: &[Topology]) -> Vec<Vec<u32>> {
     let coarse = &topologies[m];
     let a = (f >> (2 * (levels - m))) as u32;
     let corners = coarse.face_vertices(a as usize);
-    let mut around: Vec<u32> = corners
-        .iter()
-        .flat_map(|&c| coarse.vertex_faces(c as usize).iter().copied())
-        .collect();
-    around.sort_unstable();
-    around.dedup();
+    let around = faces_around(corners, coarse);
     let edge_neighbours: Vec<u32> = around
         .iter()
         .copied()
@@ -282,18 +277,6 @@ fn fix_face(
         state[g as usize] = face_state(topo.face_vertices(g as usize), pos, hints, proj);
     }
     Some((c.flat, c.region.len()))
-}
-
-/// The faces around the vertices of `region` (sorted, distinct): every face a move of them
-/// can change.
-fn faces_around(region: &[u32], topo: &Topology) -> Vec<u32> {
-    let mut faces: Vec<u32> = region
-        .iter()
-        .flat_map(|&w| topo.vertex_faces(w as usize).iter().copied())
-        .collect();
-    faces.sort_unstable();
-    faces.dedup();
-    faces
 }
 
 /// A re-subdivision of a region: its vertices (sorted), their places in it, and their new

@@ -93,6 +93,18 @@ pub(super) fn face_state(fv: &[u32], pos: &[DVec3], hints: &[u32], proj: &Projec
     (sign, angle, degenerate, dist)
 }
 
+/// The faces around the vertices of `region` (sorted, distinct): every face a move of them
+/// can change.
+pub(super) fn faces_around(region: &[u32], topo: &Topology) -> Vec<u32> {
+    let mut faces: Vec<u32> = region
+        .iter()
+        .flat_map(|&w| topo.vertex_faces(w as usize).iter().copied())
+        .collect();
+    faces.sort_unstable();
+    faces.dedup();
+    faces
+}
+
 /// Re-measures the faces around the vertices that moved since `last` was taken, and takes
 /// `last` again.
 fn refresh(
@@ -718,15 +730,6 @@ fn reembed(
         let patch = [widest, 9, 5, 3]
             .into_iter()
             .find_map(|k| Patch::under(pos, hints, &grow(k, &[]), proj));
-        let faces_around = |verts: &[u32]| {
-            let mut faces: Vec<u32> = verts
-                .iter()
-                .flat_map(|&v| topo.vertex_faces(v as usize).iter().copied())
-                .collect();
-            faces.sort_unstable();
-            faces.dedup();
-            faces
-        };
         let score = |pos: &[DVec3], hints: &[u32], disc_faces: &[u32]| {
             let mut nbad = 0;
             let mut dev = 0.0f64;
@@ -782,7 +785,7 @@ fn reembed(
             if free.is_empty() || free.len() > MAX_DISC {
                 continue;
             }
-            let disc_faces = faces_around(&free);
+            let disc_faces = faces_around(&free, topo);
             // The disc's score as it is (the flat re-embedding needs it only if it succeeds).
             let mut before = (k <= MEMBRANE_RINGS).then(|| score(pos, hints, &disc_faces));
             let saved = save(&free, pos, hints);
@@ -918,7 +921,7 @@ fn reembed(
                     if free.is_empty() {
                         continue;
                     }
-                    let disc_faces = faces_around(&movable);
+                    let disc_faces = faces_around(&movable, topo);
                     let Ok(moves) =
                         flat_reembed(pt, pos, hints, topo, &free, &runs, &disc_faces, proj)
                     else {
