@@ -937,6 +937,37 @@ impl RingTables<'_> {
         self.edge_face_offsets[e as usize + 1] - self.edge_face_offsets[e as usize]
     }
 
+    /// Number of edge-connected fans among the corners `oi` (outgoing and incoming edge of
+    /// each; through any shared edge, manifold or not).
+    fn fans(oi: &[(u32, u32)], fan_of: &mut Vec<u32>, stack: &mut Vec<usize>) -> u32 {
+        let n = oi.len();
+        fan_of.clear();
+        fan_of.resize(n, u32::MAX);
+        let mut fans = 0u32;
+        for k0 in 0..n {
+            if fan_of[k0] != u32::MAX {
+                continue;
+            }
+            fan_of[k0] = fans;
+            stack.clear();
+            stack.push(k0);
+            while let Some(k) = stack.pop() {
+                let (o, i) = oi[k];
+                for (k2, fan) in fan_of.iter_mut().enumerate() {
+                    if *fan == u32::MAX {
+                        let (o2, i2) = oi[k2];
+                        if o2 == o || o2 == i || i2 == o || i2 == i {
+                            *fan = fans;
+                            stack.push(k2);
+                        }
+                    }
+                }
+            }
+            fans += 1;
+        }
+        fans
+    }
+
     /// Orders one vertex's incident `faces` (with their `corners`) and `edges` in place when
     /// they form one manifold fan, and returns the vertex's kind.
     fn order_ring(
@@ -963,40 +994,14 @@ impl RingTables<'_> {
                 (self.face_edges[a + i], self.face_edges[prev])
             }));
         let oi = &s.out_in;
-
-        // Count edge-connected fans (through any incident edge, manifold or not).
-        s.fan_of.clear();
-        s.fan_of.resize(n, u32::MAX);
-        let mut fans = 0u32;
-        for k0 in 0..n {
-            if s.fan_of[k0] != u32::MAX {
-                continue;
-            }
-            s.fan_of[k0] = fans;
-            s.stack.clear();
-            s.stack.push(k0);
-            while let Some(k) = s.stack.pop() {
-                let (o, i) = oi[k];
-                for (k2, fan) in s.fan_of.iter_mut().enumerate() {
-                    if *fan == u32::MAX {
-                        let (o2, i2) = oi[k2];
-                        if o2 == o || o2 == i || i2 == o || i2 == i {
-                            *fan = fans;
-                            s.stack.push(k2);
-                        }
-                    }
-                }
-            }
-            fans += 1;
-        }
-        if fans > 1 {
-            return VertexKind::NonManifold;
-        }
-        if edges.iter().any(|&e| self.nfaces(e) > 2) {
-            return VertexKind::Irregular;
-        }
-        // One fan of manifold edges: walk it. Find a start corner: on a boundary, the
-        // corner whose outgoing edge is a boundary edge.
+        // Walk the fan from a start corner (see below). A walk that covers every corner proves
+        // there is one edge-connected fan, so the fans are counted (quadratic in the valence)
+        // only when it does not: a vertex is non-manifold if it has several fans, else
+        // irregular if an incident edge is non-manifold, the walk stops short or the
+        // orientation flips.
+        let irregular_edge = edges.iter().any(|&e| self.nfaces(e) > 2);
+        // Find a start corner: on a boundary, the corner whose outgoing edge is a boundary
+        // edge.
         let mut start = 0usize;
         let mut boundary = false;
         let mut start_flipped = false;
@@ -1060,6 +1065,13 @@ impl RingTables<'_> {
         }
         let complete = s.faces.len() == n && s.edges.len() == edges.len();
         if !complete {
+            return if Self::fans(oi, &mut s.fan_of, &mut s.stack) > 1 {
+                VertexKind::NonManifold
+            } else {
+                VertexKind::Irregular
+            };
+        }
+        if irregular_edge {
             return VertexKind::Irregular;
         }
         faces.copy_from_slice(&s.faces);
@@ -1100,5 +1112,89 @@ mod arity_tests {
         assert_eq!(uniform_arity(&[0]), 0);
         assert_eq!(uniform_arity(&[0, 3, 6, 10]), 0);
         assert_eq!(uniform_arity(&[0, 4, 8]), 4);
+    }
+}
+
+#[cfg(test)]
+mod ring_tests {
+    use super::*;
+    use crate::generate;
+    use glam::DVec3;
+
+    fn kinds(faces: Vec<Vec<u32>>) -> Vec<VertexKind> {
+        let n = faces.iter().flatten().max().map_or(0, |&v| v + 1) as usize;
+        let m = Mesh::from_faces(vec![DVec3::ZERO; n], faces);
+        Topology::build(&m).vertex_kinds
+    }
+
+    /// Each ordered ring alternates edges and faces: face `f_i` lies between edges `e_i` and
+    /// `e_{i+1}`, and `e_i` is its outgoing edge at the vertex.
+    fn check_rings(t: &Topology) {
+        for v in 0..t.num_vertices as usize {
+            let (fs, es) = (t.vertex_faces(v), t.vertex_edges(v));
+            let kind = t.vertex_kinds[v];
+            match kind {
+                VertexKind::Interior => assert_eq!(es.len(), fs.len()),
+                VertexKind::Boundary => assert_eq!(es.len(), fs.len() + 1),
+                other => panic!("vertex {v} is {other:?}"),
+            }
+            for (i, (&f, &c)) in fs.iter().zip(t.vertex_face_corners(v)).enumerate() {
+                let fe = t.face_edges(f as usize);
+                let n = fe.len();
+                let c = c as usize;
+                assert_eq!(t.face_vertices(f as usize)[c] as usize, v);
+                assert_eq!(fe[c], es[i], "outgoing edge of face {i} at vertex {v}");
+                assert_eq!(fe[(c + n - 1) % n], es[(i + 1) % es.len()], "vertex {v}");
+            }
+        }
+    }
+
+    #[test]
+    fn manifold_rings_are_ordered() {
+        for m in [
+            generate::icosahedron(),
+            generate::cube(),
+            generate::disk(5),
+            generate::grid(3, 2, false),
+            generate::torus(1.0, 0.4, 5, 4, true),
+        ] {
+            check_rings(&Topology::build(&m));
+        }
+    }
+
+    #[test]
+    fn pinched_vertex_is_non_manifold() {
+        // Two triangles touching at vertex 0 only.
+        let k = kinds(vec![vec![0, 1, 2], vec![0, 3, 4]]);
+        assert_eq!(k[0], VertexKind::NonManifold);
+        assert!(k[1..].iter().all(|&x| x == VertexKind::Boundary));
+        // Two fans, one of them around a non-manifold edge: still non-manifold.
+        let k = kinds(vec![
+            vec![0, 1, 2],
+            vec![1, 0, 3],
+            vec![0, 1, 4],
+            vec![0, 5, 6],
+        ]);
+        assert_eq!(k[0], VertexKind::NonManifold);
+        assert_eq!(k[1], VertexKind::Irregular);
+    }
+
+    #[test]
+    fn non_manifold_edge_and_flipped_orientation_are_irregular() {
+        // Three triangles on edge 0-1.
+        let k = kinds(vec![vec![0, 1, 2], vec![1, 0, 3], vec![0, 1, 4]]);
+        assert_eq!(&k[..2], &[VertexKind::Irregular, VertexKind::Irregular]);
+        assert!(k[2..].iter().all(|&x| x == VertexKind::Boundary));
+        // Two triangles traversing edge 0-1 the same way.
+        let k = kinds(vec![vec![0, 1, 2], vec![0, 1, 3]]);
+        assert_eq!(&k[..2], &[VertexKind::Irregular, VertexKind::Irregular]);
+        // A closed fan with one face flipped.
+        let k = kinds(vec![
+            vec![0, 1, 2],
+            vec![0, 2, 3],
+            vec![0, 4, 3],
+            vec![0, 4, 1],
+        ]);
+        assert_eq!(k[0], VertexKind::Irregular);
     }
 }
