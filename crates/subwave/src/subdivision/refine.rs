@@ -191,23 +191,32 @@ pub fn child_faces(parent: &Topology, split: Split) -> (Vec<u32>, Vec<u32>) {
 /// branch predictor learns). Each candidate is written at `len`, which then advances only for
 /// a new edge, so every slot below `len` holds an edge (and an out-of-range slot is a
 /// bounds-check panic).
+///
+/// Whether a half is new needs no lookup: the parent's edges are numbered by first appearance,
+/// so the face being scanned is the first of its edge `e` exactly when `e` is at least
+/// `seen`, one past the largest edge of the faces before it; that first face creates both
+/// halves of `e`, and traverses `e` as `edge_vertices[e]` (the parent is consistently
+/// oriented), so its outgoing half at a corner is the half at end 0, a later face's the half
+/// at end 1.
 struct ChildEdgeList<'a> {
     slots: &'a mut [std::mem::MaybeUninit<[u32; 2]>],
     len: usize,
-    /// Per parent edge, its child halves at `parent_ends[e][0]` and `[1]` (`u32::MAX` until
+    /// Per parent edge, its child halves at `edge_vertices[e][0]` and `[1]` (`u32::MAX` until
     /// created).
     halves: &'a mut [[u32; 2]],
-    parent_ends: &'a [[u32; 2]],
+    /// One past the largest parent edge of the faces scanned before the current one.
+    seen: u32,
 }
 
 impl ChildEdgeList<'_> {
-    /// The child half of parent edge `e` at its end `w`, created on first sight with the
-    /// direction `dir`.
+    /// The child half of parent edge `e` at the current corner (the corner's outgoing edge if
+    /// `out`, else its incoming one), created by the edge's first face with the direction
+    /// `dir`.
     #[inline(always)]
-    fn half(&mut self, e: u32, w: u32, dir: [u32; 2]) -> u32 {
-        let end = usize::from(self.parent_ends[e as usize][0] != w);
+    fn half(&mut self, e: u32, out: bool, dir: [u32; 2]) -> u32 {
+        let fresh = e >= self.seen;
+        let end = usize::from(fresh != out);
         let h = &mut self.halves[e as usize][end];
-        let fresh = *h == u32::MAX;
         self.slots[self.len].write(dir);
         let id = if fresh { self.len as u32 } else { *h };
         *h = id;
@@ -228,15 +237,15 @@ impl ChildEdgeList<'_> {
     #[inline(always)]
     fn triangle(&mut self, v: &[u32], e: &[u32], nv: u32) -> [u32; 12] {
         let m = [nv + e[0], nv + e[1], nv + e[2]];
-        let h00 = self.half(e[0], v[0], [v[0], m[0]]);
+        let h00 = self.half(e[0], true, [v[0], m[0]]);
         let ia = self.interior([m[0], m[2]]);
-        let h20 = self.half(e[2], v[0], [m[2], v[0]]);
-        let h11 = self.half(e[1], v[1], [v[1], m[1]]);
+        let h20 = self.half(e[2], false, [m[2], v[0]]);
+        let h11 = self.half(e[1], true, [v[1], m[1]]);
         let ib = self.interior([m[1], m[0]]);
-        let h01 = self.half(e[0], v[1], [m[0], v[1]]);
-        let h22 = self.half(e[2], v[2], [v[2], m[2]]);
+        let h01 = self.half(e[0], false, [m[0], v[1]]);
+        let h22 = self.half(e[2], true, [v[2], m[2]]);
         let ic = self.interior([m[2], m[1]]);
-        let h12 = self.half(e[1], v[2], [m[1], v[2]]);
+        let h12 = self.half(e[1], false, [m[1], v[2]]);
         [h00, ia, h20, h11, ib, h01, h22, ic, h12, ib, ic, ia]
     }
 
@@ -250,7 +259,7 @@ impl ChildEdgeList<'_> {
         for i in 0..n {
             let ip = if i == 0 { n - 1 } else { i - 1 };
             let (mi, mp) = (nv + e[i], nv + e[ip]);
-            let h_out = self.half(e[i], v[i], [v[i], mi]);
+            let h_out = self.half(e[i], true, [v[i], mi]);
             let int_i = if i == n - 1 {
                 first_interior
             } else {
@@ -263,7 +272,7 @@ impl ChildEdgeList<'_> {
             } else {
                 prev_interior
             };
-            let h_in = self.half(e[ip], v[i], [mp, v[i]]);
+            let h_in = self.half(e[ip], false, [mp, v[i]]);
             out[4 * i..4 * i + 4].copy_from_slice(&[h_out, int_i, int_p, h_in]);
             prev_interior = int_i;
         }
@@ -273,8 +282,11 @@ impl ChildEdgeList<'_> {
 /// Child faces and edges of a split, numbered per the ordering contract.
 ///
 /// Preconditions: `parent` is a consistently oriented manifold (checked by
-/// [`crate::validate::require_manifold`] at level 0; splitting preserves it), and for
-/// [`Split::Triangles`] every face is a triangle, for [`Split::QuadTri`] a triangle or a quad.
+/// [`crate::validate::require_manifold`] at level 0; splitting preserves it) whose edges are
+/// numbered by first appearance with the ends in the direction of their first traversal (as
+/// [`Topology::build`] and this refiner number them), and for [`Split::Triangles`] every face
+/// is a triangle, for [`Split::QuadTri`] a triangle or a quad. A parent violating them gives
+/// wrong tables or a panic (an index out of range), never undefined behaviour.
 pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
     let (face_offsets, face_vertices) = child_faces(parent, split);
     let nv = parent.num_vertices;
@@ -290,7 +302,7 @@ pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
         slots: edge_store.spare_capacity_mut(),
         len: 0,
         halves: &mut halves,
-        parent_ends: &parent.edge_vertices,
+        seen: 0,
     };
     let ne32 = ne as u32;
     // Quad/triangle: the face point of the next quad.
@@ -318,6 +330,7 @@ pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
                 }
             }
         }
+        edges.seen = edges.seen.max(e.iter().max().map_or(0, |&x| x + 1));
     }
     let len = edges.len;
     debug_assert_eq!(len, count, "child edge count");
