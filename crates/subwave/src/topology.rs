@@ -994,14 +994,11 @@ impl RingTables<'_> {
                 (self.face_edges[a + i], self.face_edges[prev])
             }));
         let oi = &s.out_in;
-        // Walk the fan from a start corner (see below). A walk that covers every corner proves
-        // there is one edge-connected fan, so the fans are counted (quadratic in the valence)
-        // only when it does not: a vertex is non-manifold if it has several fans, else
-        // irregular if an incident edge is non-manifold, the walk stops short or the
-        // orientation flips.
-        let irregular_edge = edges.iter().any(|&e| self.nfaces(e) > 2);
-        // Find a start corner: on a boundary, the corner whose outgoing edge is a boundary
-        // edge.
+        // Walk the fan from a start corner. A walk that covers every corner proves there is
+        // one edge-connected fan, so the fans are counted (quadratic in the valence) only when
+        // it does not: a vertex is non-manifold if it has several fans, else irregular if the
+        // walk stops short, an incident edge is non-manifold or the orientation flips.
+        // The start corner: on a boundary, the one whose outgoing edge is a boundary edge.
         let mut start = 0usize;
         let mut boundary = false;
         let mut start_flipped = false;
@@ -1071,7 +1068,7 @@ impl RingTables<'_> {
                 VertexKind::Irregular
             };
         }
-        if irregular_edge {
+        if edges.iter().any(|&e| self.nfaces(e) > 2) {
             return VertexKind::Irregular;
         }
         faces.copy_from_slice(&s.faces);
