@@ -75,6 +75,11 @@ fn main() {
     let osd_topology = median(t.iter().map(|x| x.topology_ms).collect());
     let osd_positions = median(t.iter().map(|x| x.positions_ms).collect());
     let osd_total = median(t.iter().map(|x| x.topology_ms + x.positions_ms).collect());
+    let osd_stencil_build = median(
+        t.iter()
+            .map(|x| x.stencil_build_ms.unwrap_or(f64::NAN))
+            .collect(),
+    );
     let osd_eval = median(
         t.iter()
             .map(|x| x.stencil_eval_ms.unwrap_or(f64::NAN))
@@ -141,6 +146,12 @@ fn main() {
         p.peak_rss_mb.unwrap_or(f64::NAN),
         osd_peak,
         "MB",
+    );
+    row(
+        "stencil tables built (once)",
+        p.stencil_build_ms.unwrap_or(f64::NAN),
+        osd_stencil_build,
+        "ms",
     );
     println!(
         "subwave stencils: {:.1} ms to build, {:.0} MiB; peak with stencils {:.0} MiB",
