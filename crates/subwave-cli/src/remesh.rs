@@ -59,6 +59,15 @@ pub struct RemeshArgs {
     /// finest, none on levels over 262,144 faces; 0: dyadic sampling).
     #[arg(long, value_name = "N", default_value_t = 30)]
     pub param_relax: u32,
+    /// Re-sample the remesh into a normal mesh (Guskov et al. 2000: each vertex of the third
+    /// level on lies on the normal line of the butterfly prediction from its parents), as
+    /// `subwave encode` does by default on inputs without feature edges. Triangles only.
+    #[arg(long, conflicts_with = "quads")]
+    pub normal: bool,
+    /// Move the re-sampled vertices along their axes to the least-squares fit of the input
+    /// (off the surface, closer to it in the L2 sense), as `subwave encode` does.
+    #[arg(long, conflicts_with = "quads")]
+    pub fit: bool,
     /// Where to write the base mesh (default: OUT with `.base` before the extension).
     #[arg(long, value_name = "PATH")]
     pub base_output: Option<PathBuf>,
@@ -67,7 +76,8 @@ pub struct RemeshArgs {
     pub samples: u64,
     /// Print JSON (keys method, base_faces, levels, vertices, faces, psnr, rms, max,
     /// max_relative, rms_relative, diagonal, min_angle, mean_angle, flipped, degenerate,
-    /// param_misses, time_ms, timings, repair, warnings, output, base_output).
+    /// param_misses, time_ms, timings, normal, normal_ms, repair, warnings, output,
+    /// base_output).
     #[arg(long)]
     pub json: bool,
 }
@@ -137,8 +147,22 @@ fn base_path(out: &Path) -> PathBuf {
 pub fn run(args: &RemeshArgs) -> Result<()> {
     let mesh = subwave::io::read_mesh(&args.mesh, None)?;
     let opts = options(args);
-    let r = run_with_bar(&mesh, &opts, false)
+    let mut r = run_with_bar(&mesh, &opts, false)
         .with_context(|| format!("remeshing {}", args.mesh.display()))?;
+    let resampled = if args.normal || args.fit {
+        let t = std::time::Instant::now();
+        let stats = subwave::remesh::normal::resample_remesh(
+            &mut r,
+            &mesh,
+            args.normal,
+            args.fit,
+            &Default::default(),
+        )
+        .with_context(|| format!("re-sampling the remesh of {}", args.mesh.display()))?;
+        Some((stats, t.elapsed().as_secs_f64() * 1e3))
+    } else {
+        None
+    };
     for w in &r.warnings {
         tracing::warn!("{w}");
         if !args.json {
@@ -185,6 +209,8 @@ pub fn run(args: &RemeshArgs) -> Result<()> {
             "param_misses": r.param_misses,
             "time_ms": r.timings.total_ms,
             "timings": r.timings,
+            "normal": resampled.as_ref().map(|x| &x.0),
+            "normal_ms": resampled.as_ref().map(|x| x.1),
             "repair": r.repair,
             "warnings": r.warnings,
             "output": args.output.as_ref().map(|p| p.display().to_string()),
@@ -250,6 +276,19 @@ pub fn run(args: &RemeshArgs) -> Result<()> {
             format!("{} / {}", r.quality.flipped, r.quality.degenerate),
         )
         .row("time", format!("{:.0} ms", r.timings.total_ms));
+        if let Some((stats, ms)) = &resampled {
+            let what = match (&stats.fit, args.normal) {
+                (Some(f), false) => print::fit_stats(f),
+                _ => print::normal_stats(stats),
+            };
+            t.row(
+                "re-sampled",
+                format!(
+                    "{what}; {} vertices put back where they folded faces ({ms:.0} ms)",
+                    stats.unfolded
+                ),
+            );
+        }
         if let Some(o) = &args.output {
             t.row("wrote", print::path(o));
         }

@@ -127,3 +127,65 @@ fn bench_remesh_reports_stages() {
     assert!(v["median_ms"].as_f64().unwrap() > 0.0);
     assert!(v["stages"]["simplify_ms"].as_f64().is_some());
 }
+
+#[test]
+fn remesh_normal_resamples_and_reports() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = write(
+        dir.path(),
+        "torus.obj",
+        &generate::torus(1.0, 0.4, 64, 32, true),
+    );
+    let common = [
+        "remesh",
+        input.as_str(),
+        "--levels",
+        "3",
+        "--base-faces",
+        "60",
+        "--samples",
+        "5000",
+        "--json",
+    ];
+    let maps = run(&common);
+    assert!(
+        maps.status.success(),
+        "{}",
+        String::from_utf8_lossy(&maps.stderr)
+    );
+    let maps: serde_json::Value = serde_json::from_slice(&maps.stdout).unwrap();
+    assert!(maps["normal"].is_null(), "{maps}");
+    let out = dir.path().join("normal.obj");
+    let mut args = common.to_vec();
+    args.extend(["--normal", "--fit", "-o", out.to_str().unwrap()]);
+    let o = run(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let n = &v["normal"];
+    let pierced: u64 = n["normal"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_u64().unwrap())
+        .sum();
+    assert!(pierced > 0, "{v}");
+    assert!(n["fit"]["movable"].as_u64().unwrap() > 0, "{v}");
+    assert_eq!(
+        (v["flipped"].as_u64(), v["degenerate"].as_u64()),
+        (Some(0), Some(0))
+    );
+    assert_eq!(v["faces"], maps["faces"]);
+    // The written mesh has the remesh's faces.
+    let m = read_mesh(&out, None).unwrap();
+    assert_eq!(m.num_faces() as u64, v["faces"].as_u64().unwrap());
+    // Quads cannot be re-sampled: a usage error.
+    let mut quads = common.to_vec();
+    quads.extend(["--quads", "--normal"]);
+    let q = run(&quads);
+    assert_eq!(
+        q.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&q.stderr)
+    );
+}

@@ -11,10 +11,7 @@ use crate::codec::progressive::{EncodeOptions, Wavelet};
 use crate::distance::{sample_surface, sampled_rms_to, ClosestPoint};
 use crate::hierarchy::Hierarchy;
 use crate::mesh::Mesh;
-use crate::remesh::normal::{
-    fit_on, normal_resample_fitted_on, normal_resample_on, NormalOptions, NormalStats,
-    NormalSurface,
-};
+use crate::remesh::normal::{resample_hierarchy, NormalOptions, NormalStats, NormalSurface};
 use crate::remesh::normal_fit::FitStats;
 use crate::remesh::{remesh_with_progress, RemeshOptions, Remeshed};
 use crate::subdivision::sharp_edges_by_angle;
@@ -303,21 +300,22 @@ pub fn prepare(
         let (mut normal, mut fit) = (None, None);
         if let Some(surface) = &surface {
             let no = NormalOptions::default();
+            let stage = if run_normal { "normal" } else { "fit" };
+            progress(stage, 0.0);
+            let stats = resample_hierarchy(
+                &mut r.hierarchy,
+                &r.mesh,
+                surface,
+                run_normal,
+                opts.fit,
+                &no,
+                false,
+            )?;
+            fit = stats.fit;
             if run_normal {
-                progress("normal", 0.0);
-                let stats = if opts.fit {
-                    normal_resample_fitted_on(&mut r.hierarchy, surface, &no)?
-                } else {
-                    normal_resample_on(&mut r.hierarchy, surface, &no)?
-                };
-                fit = stats.fit;
                 normal = Some(stats);
-                progress("normal", 1.0);
-            } else {
-                progress("fit", 0.0);
-                fit = Some(fit_on(&mut r.hierarchy, surface, &no)?);
-                progress("fit", 1.0);
             }
+            progress(stage, 1.0);
             r.mesh.positions.clone_from(&r.hierarchy.positions);
         }
         progress("distance", 0.0);

@@ -90,6 +90,9 @@ pub struct NormalStats {
     /// The least-squares offsets off the input ([`normal_resample_fitted_on`]), if
     /// they were applied.
     pub fit: Option<super::normal_fit::FitStats>,
+    /// Vertices put back where the remesh had them because the re-sampling folded their
+    /// faces ([`resample_remesh`]; 0 elsewhere).
+    pub unfolded: usize,
 }
 
 impl NormalStats {
@@ -214,6 +217,188 @@ pub fn fit_on(
     let (_, axes) = resample_with_axes(h, surface, opts, false)?;
     let n0 = h.num_vertices(opts.from_level.min(h.levels()));
     Ok(super::normal_fit::fit_along(h, surface, &axes, n0))
+}
+
+/// Re-samples the triangle remesh `r` of `input` in place, as the codec prepares a remesh
+/// for coding: with `normal`, into a normal mesh ([`normal_resample_on`]); with `fit`, with
+/// the least-squares offsets off the input ([`normal_resample_fitted_on`], or [`fit_on`]
+/// on the MAPS positions without `normal`); neither: nothing changes. Updates
+/// `r.hierarchy`, `r.mesh` (positions only: the connectivity and the base mesh are kept)
+/// and re-measures `r.quality` against `input` (a normal re-sampling can fold a level where
+/// the piercings of a coarsely sampled, strongly curved region cross: the count says so,
+/// with a warning in `r.warnings`).
+///
+/// # Errors
+/// [`Error::InvalidArgument`] if `r` is a quad hierarchy (`--quads`), if `input` has no
+/// triangles or names a vertex that does not exist.
+pub fn resample_remesh(
+    r: &mut super::Remeshed,
+    input: &crate::mesh::Mesh,
+    normal: bool,
+    fit: bool,
+    opts: &NormalOptions,
+) -> Result<NormalStats> {
+    if !normal && !fit {
+        return Ok(NormalStats::default());
+    }
+    if r.hierarchy.split != Split::Triangles {
+        return Err(Error::InvalidArgument(
+            "normal re-sampling and least-squares offsets need a triangle remesh (not --quads)"
+                .to_string(),
+        ));
+    }
+    let tris: Vec<[u32; 3]> = input
+        .faces()
+        .flat_map(|f| (2..f.len()).map(move |k| [f[0], f[k - 1], f[k]]))
+        .collect();
+    let surface = NormalSurface::new(&input.positions, &tris)?;
+    let stats = resample_hierarchy(&mut r.hierarchy, &r.mesh, &surface, normal, fit, opts, true)?;
+    r.mesh.positions.clone_from(&r.hierarchy.positions);
+    r.quality = super::quality::measure(&r.mesh, surface.projector());
+    if r.quality.flipped > 0 {
+        r.warnings.push(format!(
+            "{} face(s) flipped after the {}",
+            r.quality.flipped,
+            if normal {
+                "normal re-sampling"
+            } else {
+                "least-squares offsets"
+            }
+        ));
+    }
+    Ok(stats)
+}
+
+/// The re-sampling of [`resample_remesh`] on the hierarchy `h` whose finest level has the
+/// connectivity of `finest`, on an indexed input (the codec's preparation calls it too):
+/// [`normal_resample_on`] or [`normal_resample_fitted_on`] with `normal`, [`fit_on`] with
+/// `fit` alone, then, with `unfold`, [`unfold_to`] the positions `h` had before where faces
+/// folded.
+///
+/// The codec does not unfold: on the bunny at 5 levels the unfolded normal mesh with offsets
+/// is 83.6 dB from the input instead of 85.4 dB (the vertices put back stretch faces across
+/// the normal mesh's drift), and the coded stream's highest PSNR falls by as much (0.53×
+/// Draco's bytes at 79.2 dB, 1.27× at 83.2 dB; measured 2026-12-04).
+///
+/// # Errors
+/// As [`normal_resample_on`].
+pub(crate) fn resample_hierarchy(
+    h: &mut Hierarchy,
+    finest: &crate::mesh::Mesh,
+    surface: &NormalSurface,
+    normal: bool,
+    fit: bool,
+    opts: &NormalOptions,
+    unfold: bool,
+) -> Result<NormalStats> {
+    let before = if unfold {
+        h.positions.clone()
+    } else {
+        Vec::new()
+    };
+    let mut stats = match (normal, fit) {
+        (true, true) => normal_resample_fitted_on(h, surface, opts)?,
+        (true, false) => normal_resample_on(h, surface, opts)?,
+        (false, true) => NormalStats {
+            fit: Some(fit_on(h, surface, opts)?),
+            ..NormalStats::default()
+        },
+        (false, false) => return Ok(NormalStats::default()),
+    };
+    if unfold {
+        let topo = Topology::build(finest);
+        stats.unfolded = unfold_to(&mut h.positions, &before, &topo, surface.projector());
+        tracing::debug!(unfolded = stats.unfolded, "re-sampling: vertices put back");
+    }
+    Ok(stats)
+}
+
+/// Rounds of [`unfold_to`] at most.
+const UNFOLD_ROUNDS: usize = 40;
+
+/// Whether the face `fv` of a re-sampled remesh is folded or degenerate, as
+/// [`super::quality::measure`] counts them: its normal opposes the input's at the closest
+/// input point of its centroid, or its smallest angle is below
+/// [`super::quality::DEGENERATE_DEGREES`].
+fn folded(fv: &[u32], pos: &[DVec3], proj: &Projector) -> bool {
+    let n = super::resample::face_normal(fv, pos);
+    if n.length_squared() == 0.0
+        || super::quality::min_angle(fv, pos) < super::quality::DEGENERATE_DEGREES
+    {
+        return true;
+    }
+    let c = fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64;
+    let (_, tri) = proj.closest_near(c, &[]);
+    n.dot(proj.normals[tri as usize]) < 0.0
+}
+
+/// Puts back the positions `before` (a fold-free remesh, e.g. the MAPS remesh that a normal
+/// re-sampling started from) of the vertices of the finest faces that the re-sampling
+/// folded or made degenerate (as [`super::quality::measure`] counts them), growing the set
+/// one ring around the faces whose vertices are all back already, for at most
+/// [`UNFOLD_ROUNDS`] rounds. The vertices put back lose their normal (scalar) details, the
+/// others keep theirs. Returns the vertices put back.
+///
+/// Measured on the bunny at 5 levels (default options): the normal mesh has 68 folded and 2
+/// degenerate faces, none after 853 vertices are put back (82.98 → 81.90 dB from the input;
+/// with the least-squares offsets, 70 and 2 faces, 1,056 vertices, 85.4 → 83.6 dB).
+pub(crate) fn unfold_to(
+    pos: &mut [DVec3],
+    before: &[DVec3],
+    topo: &Topology,
+    proj: &Projector,
+) -> usize {
+    let mut bad: Vec<u32> = (0..topo.num_faces() as u32)
+        .into_par_iter()
+        .filter(|&f| folded(topo.face_vertices(f as usize), pos, proj))
+        .collect();
+    let mut put_back = 0;
+    for _ in 0..UNFOLD_ROUNDS {
+        if bad.is_empty() {
+            break;
+        }
+        let mut verts: Vec<u32> = bad
+            .iter()
+            .flat_map(|&f| topo.face_vertices(f as usize).iter().copied())
+            .filter(|&v| pos[v as usize] != before[v as usize])
+            .collect();
+        if verts.is_empty() {
+            // Every vertex of the bad faces is back: one ring more around them.
+            verts = bad
+                .iter()
+                .flat_map(|&f| topo.face_vertices(f as usize).iter().copied())
+                .flat_map(|v| {
+                    topo.vertex_edges(v as usize)
+                        .iter()
+                        .copied()
+                        .map(move |e| (e, v))
+                })
+                .map(|(e, v)| topo.other_vertex(e as usize, v))
+                .filter(|&v| pos[v as usize] != before[v as usize])
+                .collect();
+            if verts.is_empty() {
+                break;
+            }
+        }
+        verts.sort_unstable();
+        verts.dedup();
+        for &v in &verts {
+            pos[v as usize] = before[v as usize];
+        }
+        put_back += verts.len();
+        let mut faces: Vec<u32> = verts
+            .iter()
+            .flat_map(|&v| topo.vertex_faces(v as usize).iter().copied())
+            .chain(bad.iter().copied())
+            .collect();
+        faces.sort_unstable();
+        faces.dedup();
+        bad = faces
+            .into_par_iter()
+            .filter(|&f| folded(topo.face_vertices(f as usize), pos, proj))
+            .collect();
+    }
+    put_back
 }
 
 /// The re-sampling of [`normal_resample_on`] (only if `pierce`), also returning each
@@ -389,6 +574,66 @@ mod tests {
     use crate::generate;
     use crate::remesh::{remesh, RemeshOptions};
     use crate::wavelet::triangle::DetailFrame;
+
+    /// A vertex pushed through its star folds faces; [`unfold_to`] puts it back where the
+    /// fold-free mesh had it, and moves nothing else.
+    #[test]
+    fn unfold_puts_folded_vertices_back() {
+        let m = generate::icosphere(3);
+        let tris: Vec<[u32; 3]> = m.faces().map(|f| [f[0], f[1], f[2]]).collect();
+        let proj = Projector::new(&m.positions, &tris).unwrap();
+        let topo = Topology::build(&m);
+        let before = m.positions.clone();
+        let mut pos = before.clone();
+        // Vertex 0 moved past its ring along the surface: its faces turn over.
+        let far = topo.other_vertex(topo.vertex_edges(0)[0] as usize, 0) as usize;
+        pos[0] = (before[0] + 2.5 * (before[far] - before[0])).normalize();
+        let folded_faces = (0..topo.num_faces())
+            .filter(|&f| folded(topo.face_vertices(f), &pos, &proj))
+            .count();
+        assert!(folded_faces > 0);
+        let n = unfold_to(&mut pos, &before, &topo, &proj);
+        assert!(n >= 1);
+        assert_eq!(pos, before);
+        // Nothing to do on a fold-free mesh.
+        assert_eq!(unfold_to(&mut pos, &before, &topo, &proj), 0);
+    }
+
+    /// [`resample_remesh`] keeps the connectivity, writes the hierarchy's positions into the
+    /// mesh, re-measures the quality (no folds left) and refuses quad remeshes.
+    #[test]
+    fn resample_remesh_updates_mesh_and_quality() {
+        let input = generate::torus(1.0, 0.4, 64, 32, true);
+        let opts = RemeshOptions {
+            levels: 3,
+            base_faces: 60,
+            ..Default::default()
+        };
+        let mut r = remesh(&input, &opts).unwrap();
+        let faces = r.mesh.face_indices.clone();
+        let maps = r.mesh.positions.clone();
+        let stats = resample_remesh(&mut r, &input, true, true, &NormalOptions::default()).unwrap();
+        assert!(stats.normal_fraction() > 0.5, "{stats:?}");
+        assert!(stats.fit.is_some());
+        assert_eq!(r.mesh.face_indices, faces);
+        assert_eq!(r.mesh.positions, r.hierarchy.positions);
+        assert_ne!(r.mesh.positions, maps);
+        assert_eq!((r.quality.flipped, r.quality.degenerate), (0, 0));
+        // Neither re-sampling nor offsets: nothing changes.
+        let mut r2 = remesh(&input, &opts).unwrap();
+        let same = r2.mesh.positions.clone();
+        resample_remesh(&mut r2, &input, false, false, &NormalOptions::default()).unwrap();
+        assert_eq!(r2.mesh.positions, same);
+        let mut q = remesh(
+            &input,
+            &RemeshOptions {
+                quads: true,
+                ..opts
+            },
+        )
+        .unwrap();
+        assert!(resample_remesh(&mut q, &input, true, false, &NormalOptions::default()).is_err());
+    }
 
     /// A sphere remeshed from an irregular-ish input: after normal re-sampling most odd
     /// vertices are normal, every moved vertex lies on the input, and the unlifted butterfly
