@@ -332,9 +332,15 @@ fn folded(fv: &[u32], pos: &[DVec3], proj: &Projector) -> bool {
     n.dot(proj.normals[tri as usize]) < 0.0
 }
 
+/// Whether face `fv` is [`folded`] at `pos` but not at `before`.
+fn worse(fv: &[u32], pos: &[DVec3], before: &[DVec3], proj: &Projector) -> bool {
+    folded(fv, pos, proj) && !folded(fv, before, proj)
+}
+
 /// Puts back the positions `before` (a fold-free remesh, e.g. the MAPS remesh that a normal
 /// re-sampling started from) of the vertices of the finest faces that the re-sampling
-/// folded or made degenerate (as [`super::quality::measure`] counts them), growing the set
+/// folded or made degenerate (as [`super::quality::measure`] counts them; faces already bad
+/// at `before` are left as they are), growing the set
 /// one ring around the faces whose vertices are all back already, for at most
 /// [`UNFOLD_ROUNDS`] rounds. The vertices put back lose their normal (scalar) details, the
 /// others keep theirs. Returns the vertices put back.
@@ -350,7 +356,7 @@ pub(crate) fn unfold_to(
 ) -> usize {
     let mut bad: Vec<u32> = (0..topo.num_faces() as u32)
         .into_par_iter()
-        .filter(|&f| folded(topo.face_vertices(f as usize), pos, proj))
+        .filter(|&f| worse(topo.face_vertices(f as usize), pos, before, proj))
         .collect();
     let mut put_back = 0;
     for _ in 0..UNFOLD_ROUNDS {
@@ -395,7 +401,7 @@ pub(crate) fn unfold_to(
         faces.dedup();
         bad = faces
             .into_par_iter()
-            .filter(|&f| folded(topo.face_vertices(f as usize), pos, proj))
+            .filter(|&f| worse(topo.face_vertices(f as usize), pos, before, proj))
             .collect();
     }
     put_back
