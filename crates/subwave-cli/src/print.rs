@@ -236,8 +236,12 @@ pub fn normal_stats(n: &subwave::remesh::normal::NormalStats) -> String {
     let fit = n
         .fit
         .map_or_else(String::new, |f| format!("; {}", fit_stats(&f)));
+    let repaired = match n.repaired {
+        [0, _] => String::new(),
+        [b, a] => format!("; {b} folded or degenerate faces repaired, {a} left"),
+    };
     format!(
-        "normal mesh: {pierced} of {odd} odd vertices pierced ({:.1}%), {projected} projected ({:.1}%), {} kept{fit}",
+        "normal mesh: {pierced} of {odd} odd vertices pierced ({:.1}%), {projected} projected ({:.1}%), {} kept{fit}{repaired}",
         pc(pierced),
         pc(projected),
         odd - pierced - projected

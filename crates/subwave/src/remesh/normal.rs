@@ -31,6 +31,14 @@
 //! not restricted by the parameterization, so on strongly curved, coarsely sampled regions a
 //! level can fold; [`normal_resample`] leaves the check to [`super::quality`].
 //!
+//! The piercings of a coarsely sampled, strongly curved region can cross and fold faces that
+//! the MAPS remesh did not have (bunny at 5 levels: 68 folded and 2 degenerate faces of
+//! 204,800, rocker-arm at 4 levels 37). The re-sampling entry points of the codec and of
+//! `subwave remesh --normal` ([`resample_remesh`]) repair them in place with the remesher's
+//! final repair ([`super::fold_repair`]): bunny 70 + 2 → 11, rocker-arm 37 → 0, at the same
+//! distance to the input (bunny 85.74 → 85.79 dB, the coded stream 0.7% larger);
+//! [`resample_remesh`] then puts the MAPS positions back around the faces left.
+//!
 //! Every re-sampled vertex lies on the input, so each triangle is a chord of it and the
 //! remesh's error is one-sided; [`normal_resample_fitted_on`] then offsets the re-sampled
 //! vertices along their piercing lines to the least-squares fit of the input
@@ -90,9 +98,12 @@ pub struct NormalStats {
     /// The least-squares offsets off the input ([`normal_resample_fitted_on`]), if
     /// they were applied.
     pub fit: Option<super::normal_fit::FitStats>,
-    /// Vertices put back where the remesh had them because the re-sampling folded their
-    /// faces ([`resample_remesh`]; 0 elsewhere).
+    /// Vertices put back where the remesh had them because their faces were still folded
+    /// after the repair in place ([`resample_remesh`]; 0 elsewhere).
     pub unfolded: usize,
+    /// Faces of the finest level the re-sampling folded or made degenerate, before and
+    /// after their repair in place ([`resample_remesh`] and the codec's preparation).
+    pub repaired: [usize; 2],
 }
 
 impl NormalStats {
@@ -272,13 +283,16 @@ pub fn resample_remesh(
 /// The re-sampling of [`resample_remesh`] on the hierarchy `h` whose finest level has the
 /// connectivity of `finest`, on an indexed input (the codec's preparation calls it too):
 /// [`normal_resample_on`] or [`normal_resample_fitted_on`] with `normal`, [`fit_on`] with
-/// `fit` alone, then, with `unfold`, [`unfold_to`] the positions `h` had before where faces
-/// folded.
+/// `fit` alone; then the faces it folded are repaired in place ([`repair_in_place`]) and,
+/// with `unfold`, the vertices of those left go back to the positions `h` had before
+/// ([`unfold_to`]).
 ///
-/// The codec does not unfold: on the bunny at 5 levels the unfolded normal mesh with offsets
-/// is 83.6 dB from the input instead of 85.4 dB (the vertices put back stretch faces across
-/// the normal mesh's drift), and the coded stream's highest PSNR falls by as much (0.53×
-/// Draco's bytes at 79.2 dB, 1.27× at 83.2 dB; measured 2026-12-04).
+/// The codec does not unfold: on the bunny at 5 levels, putting back the MAPS positions
+/// alone (no repair in place) took the normal mesh with offsets from 85.4 to 83.6 dB from the
+/// input (the vertices put back stretch faces across the normal mesh's drift), and the coded
+/// stream's highest PSNR fell by as much (0.53× Draco's bytes at 79.2 dB, 1.27× at 83.2 dB;
+/// measured 2026-12-04); after the repair in place, `remesh --normal --fit` puts back 675
+/// vertices around the 11 faces left and measures 84.3 dB.
 ///
 /// # Errors
 /// As [`normal_resample_on`].
@@ -305,12 +319,104 @@ pub(crate) fn resample_hierarchy(
         },
         (false, false) => return Ok(NormalStats::default()),
     };
+    let (before_repair, after_repair) = repair_in_place(h, surface.projector());
+    stats.repaired = [before_repair, after_repair];
     if unfold {
         let topo = Topology::build(finest);
         stats.unfolded = unfold_to(&mut h.positions, &before, &topo, surface.projector());
         tracing::debug!(unfolded = stats.unfolded, "re-sampling: vertices put back");
     }
     Ok(stats)
+}
+
+/// Rings around the bad faces whose vertices [`repair_in_place`] finds an input triangle for.
+const HINT_RINGS: usize = 16;
+
+/// Repairs the faces of the finest level of `h` that a re-sampling folded or made
+/// degenerate (as [`folded`] counts them) in place, with the remesher's final repair
+/// ([`super::fold_repair::repair_folds`]: free vertices moved on the input into the kernels
+/// of their stars, discs re-embedded, stars searched; each move kept only if it lowers the
+/// bad faces around it). Base vertices and the vertices on boundary and feature edges stay
+/// where they are. The vertices moved lose their normal (scalar) details and their
+/// least-squares offsets, the others keep theirs. Returns the bad faces before and after.
+fn repair_in_place(h: &mut Hierarchy, proj: &Projector) -> (usize, usize) {
+    let t0 = std::time::Instant::now();
+    let levels = h.levels();
+    let nb = h.num_vertices(0);
+    let topo = &h.topologies[levels];
+    let bad: Vec<u32> = (0..topo.num_faces() as u32)
+        .into_par_iter()
+        .filter(|&f| folded(topo.face_vertices(f as usize), &h.positions, proj))
+        .collect();
+    if bad.is_empty() {
+        return (0, 0);
+    }
+    let features = feature_edges(&h.topologies);
+    let mut fixed = vec![false; h.positions.len()];
+    fixed[..nb].fill(true);
+    for (e, &[a, b]) in topo.edge_vertices.iter().enumerate() {
+        if features[levels][e] {
+            fixed[a as usize] = true;
+            fixed[b as usize] = true;
+        }
+    }
+    // The input triangles closest to the vertices within HINT_RINGS rings of the bad faces
+    // (which the repair's discs reach), from which its closest-point queries start; unknown
+    // (a global query) farther away.
+    let mut near = vec![false; h.positions.len()];
+    let mut frontier: Vec<u32> = bad
+        .iter()
+        .flat_map(|&f| topo.face_vertices(f as usize).iter().copied())
+        .collect();
+    for &v in &frontier {
+        near[v as usize] = true;
+    }
+    for _ in 0..HINT_RINGS {
+        let mut next = Vec::new();
+        for &v in &frontier {
+            for &e in topo.vertex_edges(v as usize) {
+                let w = topo.other_vertex(e as usize, v);
+                if !std::mem::replace(&mut near[w as usize], true) {
+                    next.push(w);
+                }
+            }
+        }
+        frontier = next;
+    }
+    let mut hints: Vec<u32> = h
+        .positions
+        .par_iter()
+        .zip(&near)
+        .map(|(&p, &n)| {
+            if n {
+                proj.closest_near(p, &[]).1
+            } else {
+                u32::MAX
+            }
+        })
+        .collect();
+    let slides = vec![false; h.positions.len()];
+    tracing::debug!(
+        ms = t0.elapsed().as_secs_f64() * 1e3,
+        "re-sampling: measured, hinted"
+    );
+    let fr = super::fold_repair::repair_folds(
+        &mut h.positions,
+        &mut hints,
+        topo,
+        &fixed,
+        &slides,
+        proj,
+        12,
+        Some(&bad),
+        f64::INFINITY,
+    );
+    tracing::debug!(
+        ms = t0.elapsed().as_secs_f64() * 1e3,
+        ?fr,
+        "re-sampling: fold repair"
+    );
+    (bad.len(), fr.flipped_after + fr.degenerate_after)
 }
 
 /// Rounds of [`unfold_to`] at most.
@@ -345,9 +451,11 @@ fn worse(fv: &[u32], pos: &[DVec3], before: &[DVec3], proj: &Projector) -> bool 
 /// [`UNFOLD_ROUNDS`] rounds. The vertices put back lose their normal (scalar) details, the
 /// others keep theirs. Returns the vertices put back.
 ///
-/// Measured on the bunny at 5 levels (default options): the normal mesh has 68 folded and 2
-/// degenerate faces, none after 853 vertices are put back (82.98 → 81.90 dB from the input;
-/// with the least-squares offsets, 70 and 2 faces, 1,056 vertices, 85.4 → 83.6 dB).
+/// Measured on the bunny at 5 levels (default options), alone: the normal mesh has 68 folded
+/// and 2 degenerate faces, none after 853 vertices are put back (82.98 → 81.90 dB from the
+/// input; with the least-squares offsets, 70 and 2 faces, 1,056 vertices, 85.4 → 83.6 dB).
+/// After [`repair_in_place`]: 4 faces left, 410 vertices put back, 81.87 dB; with the
+/// offsets 11, 675 vertices, 84.34 dB.
 pub(crate) fn unfold_to(
     pos: &mut [DVec3],
     before: &[DVec3],
@@ -603,6 +711,45 @@ mod tests {
         assert_eq!(pos, before);
         // Nothing to do on a fold-free mesh.
         assert_eq!(unfold_to(&mut pos, &before, &topo, &proj), 0);
+    }
+
+    /// A vertex of a remesh pushed across its star folds faces; [`repair_in_place`] opens
+    /// them by moving free vertices on the input, and leaves the base vertices where they are.
+    #[test]
+    fn repair_in_place_opens_a_pushed_fold() {
+        let input = generate::torus(1.0, 0.4, 64, 32, true);
+        let tris: Vec<[u32; 3]> = input.faces().map(|f| [f[0], f[1], f[2]]).collect();
+        let proj = Projector::new(&input.positions, &tris).unwrap();
+        let mut r = remesh(
+            &input,
+            &RemeshOptions {
+                levels: 3,
+                base_faces: 60,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let h = &mut r.hierarchy;
+        assert_eq!(
+            repair_in_place(h, &proj),
+            (0, 0),
+            "the MAPS remesh is fold-free"
+        );
+        let nb = h.num_vertices(0);
+        let base = h.positions[..nb].to_vec();
+        let topo = h.topology(h.levels()).clone();
+        let v = h.positions.len() - 1;
+        let far = topo.other_vertex(topo.vertex_edges(v)[0] as usize, v as u32) as usize;
+        let pushed = h.positions[v] + 2.5 * (h.positions[far] - h.positions[v]);
+        h.positions[v] = proj.closest_near(pushed, &[]).0;
+        let (before, after) = repair_in_place(h, &proj);
+        assert!(before > 0);
+        assert_eq!(after, 0);
+        assert_eq!(&h.positions[..nb], &base[..]);
+        let still = (0..topo.num_faces())
+            .filter(|&f| folded(topo.face_vertices(f), &h.positions, &proj))
+            .count();
+        assert_eq!(still, 0);
     }
 
     /// [`resample_remesh`] keeps the connectivity, writes the hierarchy's positions into the
