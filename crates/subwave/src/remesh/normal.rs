@@ -689,6 +689,21 @@ mod tests {
     use crate::remesh::{remesh, RemeshOptions};
     use crate::wavelet::triangle::DetailFrame;
 
+    /// A torus remeshed over about 60 base faces, 3 levels, and the input.
+    fn torus_remesh() -> (crate::mesh::Mesh, crate::remesh::Remeshed) {
+        let input = generate::torus(1.0, 0.4, 64, 32, true);
+        let r = remesh(
+            &input,
+            &RemeshOptions {
+                levels: 3,
+                base_faces: 60,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        (input, r)
+    }
+
     /// A vertex pushed through its star folds faces; [`unfold_to`] puts it back where the
     /// fold-free mesh had it, and moves nothing else.
     #[test]
@@ -717,18 +732,9 @@ mod tests {
     /// them by moving free vertices on the input, and leaves the base vertices where they are.
     #[test]
     fn repair_in_place_opens_a_pushed_fold() {
-        let input = generate::torus(1.0, 0.4, 64, 32, true);
+        let (input, mut r) = torus_remesh();
         let tris: Vec<[u32; 3]> = input.faces().map(|f| [f[0], f[1], f[2]]).collect();
         let proj = Projector::new(&input.positions, &tris).unwrap();
-        let mut r = remesh(
-            &input,
-            &RemeshOptions {
-                levels: 3,
-                base_faces: 60,
-                ..Default::default()
-            },
-        )
-        .unwrap();
         let h = &mut r.hierarchy;
         assert_eq!(
             repair_in_place(h, &proj),
@@ -793,16 +799,7 @@ mod tests {
     /// details of the moved vertices have (numerically) zero tangential components.
     #[test]
     fn normal_vertices_have_scalar_details() {
-        let input = generate::torus(1.0, 0.4, 64, 32, true);
-        let r = remesh(
-            &input,
-            &RemeshOptions {
-                levels: 3,
-                base_faces: 60,
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let (input, r) = torus_remesh();
         let mut h = r.hierarchy.clone();
         let tris: Vec<[u32; 3]> = input
             .faces()
