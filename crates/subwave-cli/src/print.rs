@@ -236,16 +236,22 @@ pub fn normal_stats(n: &subwave::remesh::normal::NormalStats) -> String {
     let fit = n
         .fit
         .map_or_else(String::new, |f| format!("; {}", fit_stats(&f)));
-    let repaired = match n.repaired {
-        [0, _] => String::new(),
-        [b, a] => format!("; {b} folded or degenerate faces repaired, {a} left"),
-    };
+    let repaired = repaired(n);
     format!(
         "normal mesh: {pierced} of {odd} odd vertices pierced ({:.1}%), {projected} projected ({:.1}%), {} kept{fit}{repaired}",
         pc(pierced),
         pc(projected),
         odd - pierced - projected
     )
+}
+
+/// The repair of the faces a re-sampling folded, as `"; B folded or degenerate faces
+/// repaired, A left"`; empty if there were none.
+pub fn repaired(n: &subwave::remesh::normal::NormalStats) -> String {
+    match n.repaired {
+        [0, _] => String::new(),
+        [b, a] => format!("; {b} folded or degenerate faces repaired, {a} left"),
+    }
 }
 
 /// The least-squares offsets off the input (`remesh::normal_fit`), in a few words.

@@ -278,13 +278,9 @@ pub fn run(args: &RemeshArgs) -> Result<()> {
         .row("time", format!("{:.0} ms", r.timings.total_ms));
         if let Some((stats, ms)) = &resampled {
             let what = match (&stats.fit, args.normal) {
-                (Some(f), false) => match stats.repaired {
-                    [0, _] => print::fit_stats(f),
-                    [b, a] => format!(
-                        "{}; {b} folded or degenerate faces repaired, {a} left",
-                        print::fit_stats(f)
-                    ),
-                },
+                (Some(f), false) => {
+                    format!("{}{}", print::fit_stats(f), print::repaired(stats))
+                }
                 _ => print::normal_stats(stats),
             };
             t.row(

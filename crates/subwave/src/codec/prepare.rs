@@ -273,13 +273,8 @@ pub fn prepare(
     // distance, and the input's samples are made beside the first remesh.
     let (first, surface, input_bvh, input_samples) = std::thread::scope(|scope| {
         let indexes = scope.spawn(|| {
-            let surface = index_surface.then(|| {
-                let tris: Vec<[u32; 3]> = mesh
-                    .faces()
-                    .flat_map(|f| (2..f.len()).map(move |k| [f[0], f[k - 1], f[k]]))
-                    .collect();
-                NormalSurface::new(&mesh.positions, &tris)
-            });
+            let surface =
+                index_surface.then(|| NormalSurface::new(&mesh.positions, &mesh.triangulate().0));
             let samples = crate::distance::triangles(mesh, "the input")
                 .map(|t| sample_surface(&mesh.positions, &t, REMESH_SAMPLES));
             (surface, ClosestPoint::new(mesh), samples)
@@ -302,15 +297,8 @@ pub fn prepare(
             let no = NormalOptions::default();
             let stage = if run_normal { "normal" } else { "fit" };
             progress(stage, 0.0);
-            let stats = resample_hierarchy(
-                &mut r.hierarchy,
-                &r.mesh,
-                surface,
-                run_normal,
-                opts.fit,
-                &no,
-                false,
-            )?;
+            let stats =
+                resample_hierarchy(&mut r.hierarchy, surface, run_normal, opts.fit, &no, false)?;
             fit = stats.fit;
             if run_normal {
                 normal = Some(stats);

@@ -258,12 +258,8 @@ pub fn resample_remesh(
                 .to_string(),
         ));
     }
-    let tris: Vec<[u32; 3]> = input
-        .faces()
-        .flat_map(|f| (2..f.len()).map(move |k| [f[0], f[k - 1], f[k]]))
-        .collect();
-    let surface = NormalSurface::new(&input.positions, &tris)?;
-    let stats = resample_hierarchy(&mut r.hierarchy, &r.mesh, &surface, normal, fit, opts, true)?;
+    let surface = NormalSurface::new(&input.positions, &input.triangulate().0)?;
+    let stats = resample_hierarchy(&mut r.hierarchy, &surface, normal, fit, opts, true)?;
     r.mesh.positions.clone_from(&r.hierarchy.positions);
     r.quality = super::quality::measure(&r.mesh, surface.projector());
     if r.quality.flipped > 0 {
@@ -280,8 +276,7 @@ pub fn resample_remesh(
     Ok(stats)
 }
 
-/// The re-sampling of [`resample_remesh`] on the hierarchy `h` whose finest level has the
-/// connectivity of `finest`, on an indexed input (the codec's preparation calls it too):
+/// The re-sampling of [`resample_remesh`] on the triangle hierarchy `h`, on an indexed input (the codec's preparation calls it too):
 /// [`normal_resample_on`] or [`normal_resample_fitted_on`] with `normal`, [`fit_on`] with
 /// `fit` alone; then the faces it folded are repaired in place ([`repair_in_place`]) and,
 /// with `unfold`, the vertices of those left go back to the positions `h` had before
@@ -298,7 +293,6 @@ pub fn resample_remesh(
 /// As [`normal_resample_on`].
 pub(crate) fn resample_hierarchy(
     h: &mut Hierarchy,
-    finest: &crate::mesh::Mesh,
     surface: &NormalSurface,
     normal: bool,
     fit: bool,
@@ -322,8 +316,8 @@ pub(crate) fn resample_hierarchy(
     let (before_repair, after_repair) = repair_in_place(h, surface.projector());
     stats.repaired = [before_repair, after_repair];
     if unfold {
-        let topo = Topology::build(finest);
-        stats.unfolded = unfold_to(&mut h.positions, &before, &topo, surface.projector());
+        let finest = &h.topologies[h.levels()];
+        stats.unfolded = unfold_to(&mut h.positions, &before, finest, surface.projector());
         tracing::debug!(unfolded = stats.unfolded, "re-sampling: vertices put back");
     }
     Ok(stats)
@@ -363,26 +357,12 @@ fn repair_in_place(h: &mut Hierarchy, proj: &Projector) -> (usize, usize) {
     // The input triangles closest to the vertices within HINT_RINGS rings of the bad faces
     // (which the repair's discs reach), from which its closest-point queries start; unknown
     // (a global query) farther away.
-    let mut near = vec![false; h.positions.len()];
-    let mut frontier: Vec<u32> = bad
-        .iter()
-        .flat_map(|&f| topo.face_vertices(f as usize).iter().copied())
-        .collect();
-    for &v in &frontier {
-        near[v as usize] = true;
-    }
-    for _ in 0..HINT_RINGS {
-        let mut next = Vec::new();
-        for &v in &frontier {
-            for &e in topo.vertex_edges(v as usize) {
-                let w = topo.other_vertex(e as usize, v);
-                if !std::mem::replace(&mut near[w as usize], true) {
-                    next.push(w);
-                }
-            }
-        }
-        frontier = next;
-    }
+    let near = super::resample::face_region(
+        topo,
+        h.positions.len(),
+        bad.iter().map(|&f| f as usize),
+        HINT_RINGS,
+    );
     let mut hints: Vec<u32> = h
         .positions
         .par_iter()
@@ -427,15 +407,8 @@ const UNFOLD_ROUNDS: usize = 40;
 /// input point of its centroid, or its smallest angle is below
 /// [`super::quality::DEGENERATE_DEGREES`].
 fn folded(fv: &[u32], pos: &[DVec3], proj: &Projector) -> bool {
-    let n = super::resample::face_normal(fv, pos);
-    if n.length_squared() == 0.0
-        || super::quality::min_angle(fv, pos) < super::quality::DEGENERATE_DEGREES
-    {
-        return true;
-    }
-    let c = fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64;
-    let (_, tri) = proj.closest_near(c, &[]);
-    n.dot(proj.normals[tri as usize]) < 0.0
+    let (_, flipped, degenerate) = super::quality::face_quality(fv, pos, proj, &[]);
+    flipped || degenerate
 }
 
 /// Whether face `fv` is [`folded`] at `pos` but not at `before`.

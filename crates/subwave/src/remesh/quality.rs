@@ -94,6 +94,27 @@ pub fn measure_with_flipped(mesh: &Mesh, flipped: usize) -> Quality {
     }
 }
 
+/// Face `fv`'s smallest angle (degrees), whether it is flipped and whether it is degenerate,
+/// as [`measure_near`] counts them (`hints` as there; empty: global closest points).
+pub(crate) fn face_quality(
+    fv: &[u32],
+    pos: &[DVec3],
+    proj: &Projector,
+    hints: &[u32],
+) -> (f64, bool, bool) {
+    let a = min_angle(fv, pos);
+    let n = face_normal(fv, pos);
+    let c = fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64;
+    let mut h = [u32::MAX; 4];
+    for (i, &v) in fv.iter().take(4).enumerate() {
+        h[i] = hints.get(v as usize).copied().unwrap_or(u32::MAX);
+    }
+    let (_, tri) = proj.closest_near(c, &h);
+    let flipped = n.dot(proj.normals[tri as usize]) < 0.0;
+    let degenerate = a < DEGENERATE_DEGREES || n.length_squared() == 0.0;
+    (a, flipped, degenerate)
+}
+
 /// [`measure`] with `hints[v]`, an input triangle near vertex `v` (`u32::MAX` or missing
 /// entries: unknown), which speeds up the closest-point queries
 /// ([`Projector::closest_near`]) without changing their answers.
@@ -101,20 +122,7 @@ pub fn measure_near(mesh: &Mesh, proj: &Projector, hints: &[u32]) -> Quality {
     let pos = &mesh.positions;
     let per_face: Vec<(f64, bool, bool)> = (0..mesh.num_faces())
         .into_par_iter()
-        .map(|f| {
-            let fv = mesh.face(f);
-            let a = min_angle(fv, pos);
-            let n = face_normal(fv, pos);
-            let c = fv.iter().map(|&v| pos[v as usize]).sum::<DVec3>() / fv.len() as f64;
-            let mut h = [u32::MAX; 4];
-            for (i, &v) in fv.iter().take(4).enumerate() {
-                h[i] = hints.get(v as usize).copied().unwrap_or(u32::MAX);
-            }
-            let (_, tri) = proj.closest_near(c, &h);
-            let flipped = n.dot(proj.normals[tri as usize]) < 0.0;
-            let degenerate = a < DEGENERATE_DEGREES || n.length_squared() == 0.0;
-            (a, flipped, degenerate)
-        })
+        .map(|f| face_quality(mesh.face(f), pos, proj, hints))
         .collect();
     let nf = per_face.len().max(1) as f64;
     Quality {
