@@ -73,7 +73,8 @@ pub struct Located {
 }
 
 impl<'a> ParamMap<'a> {
-    /// Builds charts, registrations and grids.
+    /// Builds charts (spread around the base vertices marked in `spread`, see `spread_fans`;
+    /// empty: none), registrations and grids.
     ///
     /// Preconditions: `base` is a manifold triangle mesh; every `params[i].face` indexes it.
     pub fn new(
@@ -81,13 +82,14 @@ impl<'a> ParamMap<'a> {
         input_pos: &'a [DVec3],
         input_tris: &'a [[u32; 3]],
         params: &[Param],
+        spread: &[bool],
     ) -> ParamMap<'a> {
         let topo = Topology::build(base);
         let nb = base.num_faces();
         let base_tris: Vec<[u32; 3]> = base.faces().map(|f| [f[0], f[1], f[2]]).collect();
         let charts: Vec<Vec<(u32, Mat)>> = (0..nb)
             .into_par_iter()
-            .map(|t| build_chart(&topo, &base_tris, t))
+            .map(|t| build_chart(&topo, &base_tris, t, spread))
             .collect();
         // Registration.
         let mut entries: Vec<Vec<Entry>> = vec![Vec::new(); nb];
@@ -385,8 +387,13 @@ fn build_grid(entries: &[Entry]) -> (u32, Vec<u32>, Vec<u32>) {
 /// 34 → 9 on suzanne, but the charts then disagree on the base edges between images taken
 /// in different charts: suzanne's flipped faces 44 → 261), and isometric unfoldings (each
 /// triangle's true shape; bunny 10 → 4, rocker-arm 4 → 0 flipped faces, but cow 51 → 151 and
-/// teapot 40 → 144, where slivers of the base unfold wildly).
-fn build_chart(topo: &Topology, tris: &[[u32; 3]], t: usize) -> Vec<(u32, Mat)> {
+/// teapot 40 → 144, where slivers of the base unfold wildly). A third is kept: around the
+/// base vertices marked in `spread` ([`super::remesh`] marks those of valence over six at
+/// the corners of images the untangling leaves folded, and keeps the result only if fewer
+/// are left), the triangles that share no edge with `t` are re-placed so that the fan
+/// closes (`spread_fans`). Spreading every fan of valence over six was measured too (5
+/// levels: suzanne 7 → 0 flipped faces, but teapot 6 → 8, beetle 96 → 124 bad faces).
+fn build_chart(topo: &Topology, tris: &[[u32; 3]], t: usize, spread: &[bool]) -> Vec<(u32, Mat)> {
     let tv = tris[t];
     let near = |f: usize| tris[f].iter().any(|v| tv.contains(v));
     let mut out: Vec<(u32, Mat)> = Vec::new();
@@ -441,7 +448,111 @@ fn build_chart(topo: &Topology, tris: &[[u32; 3]], t: usize) -> Vec<(u32, Mat)> 
             }
         }
     }
+    if !spread.is_empty() {
+        spread_fans(topo, tris, t, spread, &mut out);
+    }
     out
+}
+
+/// Re-places, in `t`'s chart, the triangles around each interior corner `w` of `t` of
+/// valence `k > 6` that share no edge with `t`: the parallelogram unfoldings give each of
+/// them 60° at `w`, so going both ways round `w` they overlap past 360°. With `w` at the
+/// origin of `t`'s frame taken as equilateral (`t`'s edges from `w` at 0° and 60°, its two
+/// edge neighbours' far corners at 120° and 300°, as the unfolding puts them), the spokes in
+/// between are spread evenly over the 180° left, so the fan closes up without overlap. Only
+/// the corners marked in `spread` (indexed by base vertex) are re-placed; boundary
+/// vertices, whose fans do not close, are left as unfolded.
+fn spread_fans(
+    topo: &Topology,
+    tris: &[[u32; 3]],
+    t: usize,
+    spread: &[bool],
+    out: &mut [(u32, Mat)],
+) {
+    let tv = tris[t];
+    for cw in 0..3 {
+        let w = tv[cw];
+        let k = topo.vertex_faces(w as usize).len();
+        if k <= 6 || !spread.get(w as usize).copied().unwrap_or(false) {
+            continue;
+        }
+        // Walk around w counterclockwise from t: each face's corner before w (`prev`)
+        // starts the next face's edge from w.
+        let (xa, xb) = (tv[(cw + 1) % 3], tv[(cw + 2) % 3]);
+        let mut spokes = vec![xa, xb];
+        let mut faces = vec![t as u32];
+        let mut f = t;
+        let mut prev = xb;
+        let closed = loop {
+            let Some(e) = topo.find_edge(w, prev) else {
+                break false;
+            };
+            let ef = topo.edge_faces(e as usize);
+            if ef.len() != 2 {
+                break false;
+            }
+            let g = if ef[0] as usize == f { ef[1] } else { ef[0] } as usize;
+            if g == t {
+                break true;
+            }
+            if faces.len() > k {
+                break false;
+            }
+            let gv = tris[g];
+            let Some(i) = gv.iter().position(|&x| x == w) else {
+                break false;
+            };
+            if gv[(i + 1) % 3] != prev {
+                break false;
+            }
+            prev = gv[(i + 2) % 3];
+            faces.push(g as u32);
+            spokes.push(prev);
+            f = g;
+        };
+        // spokes: s_0 = xa, s_1 = xb, ..., s_{k-1}, then back to xa.
+        if !closed || faces.len() != k || spokes.len() != k + 1 || spokes[k] != xa {
+            continue;
+        }
+        // Spoke j's angle (degrees): 0, 60, then 120 .. 300 evenly.
+        let angle = |j: usize| -> f64 {
+            match j {
+                0 => 0.0,
+                1 => 60.0,
+                _ => 120.0 + (j - 2) as f64 * 180.0 / (k - 3) as f64,
+            }
+        };
+        let at = |j: usize| -> [f64; 3] {
+            let th = angle(j).to_radians();
+            let beta = 2.0 * th.sin() / 3f64.sqrt();
+            let alpha = th.cos() - th.sin() / 3f64.sqrt();
+            let mut b = [0.0; 3];
+            b[cw] = 1.0 - alpha - beta;
+            b[(cw + 1) % 3] = alpha;
+            b[(cw + 2) % 3] = beta;
+            b
+        };
+        // Faces 2..k-1 (face j spans spokes j and j+1) share no edge with t.
+        for j in 2..k - 1 {
+            let g = faces[j];
+            let gv = tris[g as usize];
+            let mut m: Mat = [[0.0; 3]; 3];
+            for (c, &x) in gv.iter().enumerate() {
+                m[c] = if x == w {
+                    let mut u = [0.0; 3];
+                    u[cw] = 1.0;
+                    u
+                } else if x == spokes[j] {
+                    at(j)
+                } else {
+                    at(j + 1)
+                };
+            }
+            if let Some(slot) = out.iter_mut().find(|(n, _)| *n == g) {
+                slot.1 = m;
+            }
+        }
+    }
 }
 
 /// `p` in base triangle `t`'s frame: directly, as a base vertex that is a corner of `t`, or
@@ -602,7 +713,9 @@ const TUTTE_SWEEPS: usize = 30;
 /// that lowers the bad triangles around them); base vertices stay. The images left bad
 /// are nearly all at base vertices (see `build_chart`).
 ///
-/// Returns the number of bad input triangles before and after.
+/// Charts are spread around the base vertices marked in `spread` (see `spread_fans`; empty:
+/// none). Returns the number of bad input triangles before and after, and the base
+/// vertices at the corners of those left.
 ///
 /// Preconditions: as [`ParamMap::new`]; `fixed.len() == params.len()`.
 pub fn untangle_params(
@@ -611,12 +724,13 @@ pub fn untangle_params(
     params: &mut [Param],
     fixed: &[bool],
     rounds: u32,
-) -> (usize, usize) {
+    spread: &[bool],
+) -> Untangled {
     let topo = Topology::build(base);
     let base_tris: Vec<[u32; 3]> = base.faces().map(|f| [f[0], f[1], f[2]]).collect();
     let charts: Vec<Vec<(u32, Mat)>> = (0..base.num_faces())
         .into_par_iter()
-        .map(|t| build_chart(&topo, &base_tris, t))
+        .map(|t| build_chart(&topo, &base_tris, t, spread))
         .collect();
     let nv = params.len();
     let is_bad = |params: &[Param], tri: [u32; 3]| {
@@ -625,7 +739,7 @@ pub fn untangle_params(
     let bad: Vec<bool> = input_tris.par_iter().map(|&t| is_bad(params, t)).collect();
     let before = bad.iter().filter(|&&b| b).count();
     if before == 0 {
-        return (0, 0);
+        return Untangled::default();
     }
     // Vertex → faces and vertex → neighbours of the input.
     let mut vf: Vec<Vec<u32>> = vec![Vec::new(); nv];
@@ -798,6 +912,113 @@ pub fn untangle_params(
             "folded input-triangle images left"
         );
     }
-    // Faces outside the regions did not change.
-    (before, after)
+    // Faces outside the regions did not change. The base vertices that are corners of the
+    // images left bad.
+    let mut at_base: Vec<u32> = bad_faces
+        .iter()
+        .flat_map(|&f| input_tris[f as usize])
+        .filter_map(|v| {
+            let p = &params[v as usize];
+            let k = p.bary.iter().position(|&x| x == 1.0)?;
+            Some(base_tris[p.face as usize][k])
+        })
+        .collect();
+    at_base.sort_unstable();
+    at_base.dedup();
+    Untangled {
+        before,
+        after,
+        at_base,
+    }
+}
+
+/// What [`untangle_params`] left.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Untangled {
+    /// Bad input triangles (images inverted, degenerate or in no chart) before.
+    pub before: usize,
+    /// Bad input triangles after.
+    pub after: usize,
+    /// Base vertices that are a corner of a bad image after, increasing.
+    pub at_base: Vec<u32>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A bipyramid over an `n`-gon: apices 0 (valence `n`) and 1, equator `2..2 + n`.
+    fn bipyramid(n: u32) -> (Mesh, Vec<[u32; 3]>) {
+        let mut pos = vec![DVec3::Z, -DVec3::Z];
+        for i in 0..n {
+            let a = std::f64::consts::TAU * i as f64 / n as f64;
+            pos.push(DVec3::new(a.cos(), a.sin(), 0.0));
+        }
+        let tris: Vec<[u32; 3]> = (0..n)
+            .flat_map(|i| {
+                let (a, b) = (2 + i, 2 + (i + 1) % n);
+                [[0, a, b], [1, b, a]]
+            })
+            .collect();
+        (Mesh::from_triangles(pos, &tris), tris)
+    }
+
+    /// Points of `t`'s frame strictly inside two or more of the triangles around base
+    /// vertex `w` as `t`'s chart places them.
+    fn overlaps(chart: &[(u32, Mat)], tris: &[[u32; 3]], t: usize, w: u32) -> usize {
+        let identity: Mat = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let placed: Vec<[[f64; 2]; 3]> = std::iter::once(&(t as u32, identity))
+            .chain(chart)
+            .filter(|(f, _)| tris[*f as usize].contains(&w))
+            .map(|(_, m)| m.map(|c| [c[1], c[2]]))
+            .collect();
+        assert_eq!(placed.len(), 8, "the fan of the apex");
+        let mut n = 0;
+        for i in 0..=120 {
+            for j in 0..=120 {
+                let (x, y) = (-3.0 + 0.05 * i as f64, -3.0 + 0.05 * j as f64);
+                let inside = placed
+                    .iter()
+                    .filter(|xy| bary2(**xy, x, y).iter().all(|&l| l > 1e-9))
+                    .count();
+                n += usize::from(inside > 1);
+            }
+        }
+        n
+    }
+
+    /// Around a vertex of valence 8, the parallelogram unfoldings overlap (8 · 60° > 360°);
+    /// spread fans close up without overlap, keep `t`'s edge neighbours where the
+    /// unfolding puts them, and keep every placed triangle's orientation.
+    #[test]
+    fn spread_fans_close_around_high_valence_vertices() {
+        let (base, tris) = bipyramid(8);
+        let topo = Topology::build(&base);
+        let unfolded = build_chart(&topo, &tris, 0, &[]);
+        assert!(overlaps(&unfolded, &tris, 0, 0) > 0);
+        let mut spread = vec![false; base.positions.len()];
+        spread[0] = true;
+        let fans = build_chart(&topo, &tris, 0, &spread);
+        assert_eq!(overlaps(&fans, &tris, 0, 0), 0);
+        assert_eq!(fans.len(), unfolded.len());
+        for ((f, a), (g, b)) in unfolded.iter().zip(&fans) {
+            assert_eq!(f, g);
+            let edge_neighbour = tris[*f as usize]
+                .iter()
+                .filter(|v| tris[0].contains(v))
+                .count()
+                == 2;
+            if edge_neighbour || !tris[*f as usize].contains(&0) {
+                assert_eq!(a, b, "face {f}");
+            }
+            let xy = b.map(|c| [c[1], c[2]]);
+            let area = (xy[1][0] - xy[0][0]) * (xy[2][1] - xy[0][1])
+                - (xy[2][0] - xy[0][0]) * (xy[1][1] - xy[0][1]);
+            assert!(area > 0.0, "face {f} turned over");
+        }
+        // No marked vertex of valence over six: the unfolded chart.
+        spread[0] = false;
+        spread[2] = true;
+        assert_eq!(build_chart(&topo, &tris, 0, &spread), unfolded);
+    }
 }
