@@ -10,12 +10,16 @@
 //! `RefineUniform`) plus position interpolation (`PrimvarRefiner`), subwave's total is
 //! `subdivide` end to end. Re-evaluation: subwave applies its cached per-level stencil tables,
 //! OpenSubdiv evaluates its factorized finest-level stencil table (`Osd::CpuEvaluator`). Peak
-//! memory is the resident-set high-water mark, reset before each side.
+//! memory is the resident-set high-water mark, reset before each side. Last, the totals are
+//! measured again in RUNS rounds of one OpenSubdiv refinement followed by one subwave
+//! refinement, with the median of the rounds' ratios (robust to the machine's speed drifting
+//! between the blocks of runs).
 
 use std::path::PathBuf;
+use std::time::Instant;
 
 use subwave::subdivision::profile::{peak_rss_mb, profile_subdivide, reset_peak_rss};
-use subwave::subdivision::{BoundaryMode, Scheme, SubdivideOptions};
+use subwave::subdivision::{subdivide, BoundaryMode, Scheme, SubdivideOptions};
 use subwave_osd::{refine_timed, OsdOptions, OsdScheme};
 
 /// Large buffers in transparent huge pages (fewer first-touch page faults; `subwave::alloc`).
@@ -158,5 +162,30 @@ fn main() {
         p.stencil_build_ms.unwrap_or(f64::NAN),
         p.stencil_mb,
         p.peak_rss_reevaluate_mb.unwrap_or(f64::NAN)
+    );
+
+    // The totals again, one OpenSubdiv refinement then one subwave refinement per round, so
+    // that both sides see the same state of the machine (on a shared virtual machine its
+    // speed drifts between the blocks of runs above: OpenSubdiv's median total has varied by
+    // a quarter between invocations).
+    let (mut osd_t, mut our_t, mut ratios) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..runs {
+        let (_, timing) = refine_timed(&mesh, &opts).expect("OpenSubdiv refines the mesh");
+        let a = timing.topology_ms + timing.positions_ms;
+        let t0 = Instant::now();
+        let fine = subdivide(&mesh, &ours).expect("subwave refines the mesh");
+        let b = t0.elapsed().as_secs_f64() * 1e3;
+        drop(fine);
+        osd_t.push(a);
+        our_t.push(b);
+        ratios.push(b / a);
+    }
+    println!(
+        "interleaved totals ({runs} rounds)      {:>9.1} ms {:>9.1} ms {:>8.3}  (median of the rounds' ratios; range {:.3}-{:.3})",
+        median(our_t),
+        median(osd_t),
+        median(ratios.clone()),
+        ratios.iter().copied().fold(f64::INFINITY, f64::min),
+        ratios.iter().copied().fold(0.0, f64::max),
     );
 }
