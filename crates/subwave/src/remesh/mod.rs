@@ -281,29 +281,8 @@ pub fn remesh_with_progress(
         .iter()
         .map(|p| p.is_pinned(s.triangles[p.face as usize], &s.chain_edges))
         .collect();
-    let raw_params = s.params.clone();
-    let untangled = param::untangle_params(&base_tri, &tris, &mut s.params, &param_fixed, 4, &[]);
-    tracing::debug!(?untangled, "folded input-triangle images");
-    // Images left folded at base vertices of valence over six, where the parallelogram
-    // charts overlap: the untangling again from the tracked parameters with those vertices'
-    // fans spread, kept if it leaves fewer.
-    let mut spread = vec![false; s.positions.len()];
-    let base_topo = Topology::build(&base_tri);
-    for &w in &untangled.at_base {
-        spread[w as usize] = base_topo.vertex_faces(w as usize).len() > 6;
-    }
-    if spread.contains(&true) {
-        let mut params = raw_params;
-        let u = param::untangle_params(&base_tri, &tris, &mut params, &param_fixed, 4, &spread);
-        tracing::debug!(?u, "folded input-triangle images with spread fans");
-        if u.after < untangled.after {
-            s.params = params;
-        } else {
-            spread.clear();
-        }
-    } else {
-        spread.clear();
-    }
+    let (_, spread) =
+        param::untangle_spreading_fans(&base_tri, &tris, &mut s.params, &param_fixed, 4);
     let map = param::ParamMap::new(&base_tri, &pos, &tris, &s.params, &spread);
     timings.parameterize_ms = ms(t);
     progress("parameterize", 1.0);

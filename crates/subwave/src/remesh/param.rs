@@ -388,9 +388,9 @@ fn build_grid(entries: &[Entry]) -> (u32, Vec<u32>, Vec<u32>) {
 /// in different charts: suzanne's flipped faces 44 → 261), and isometric unfoldings (each
 /// triangle's true shape; bunny 10 → 4, rocker-arm 4 → 0 flipped faces, but cow 51 → 151 and
 /// teapot 40 → 144, where slivers of the base unfold wildly). A third is kept: around the
-/// base vertices marked in `spread` ([`super::remesh`] marks those of valence over six at
-/// the corners of images the untangling leaves folded, and keeps the result only if fewer
-/// are left), the triangles that share no edge with `t` are re-placed so that the fan
+/// base vertices marked in `spread` ([`untangle_spreading_fans`] marks those of valence
+/// over six at the corners of images the untangling leaves folded, and keeps the result
+/// only if fewer are left), the triangles that share no edge with `t` are re-placed so that the fan
 /// closes (`spread_fans`). Spreading every fan of valence over six was measured too (5
 /// levels: suzanne 7 → 0 flipped faces, but teapot 6 → 8, beetle 96 → 124 bad faces).
 fn build_chart(topo: &Topology, tris: &[[u32; 3]], t: usize, spread: &[bool]) -> Vec<(u32, Mat)> {
@@ -454,6 +454,10 @@ fn build_chart(topo: &Topology, tris: &[[u32; 3]], t: usize, spread: &[bool]) ->
     out
 }
 
+/// The valence whose fan the parallelogram unfoldings close exactly (6 · 60°); fans of
+/// higher valence overlap.
+const CLOSED_VALENCE: usize = 6;
+
 /// Re-places, in `t`'s chart, the triangles around each interior corner `w` of `t` of
 /// valence `k > 6` that share no edge with `t`: the parallelogram unfoldings give each of
 /// them 60° at `w`, so going both ways round `w` they overlap past 360°. With `w` at the
@@ -473,7 +477,7 @@ fn spread_fans(
     for cw in 0..3 {
         let w = tv[cw];
         let k = topo.vertex_faces(w as usize).len();
-        if k <= 6 || !spread.get(w as usize).copied().unwrap_or(false) {
+        if k <= CLOSED_VALENCE || !spread.get(w as usize).copied().unwrap_or(false) {
             continue;
         }
         // Walk around w counterclockwise from t: each face's corner before w (`prev`)
@@ -929,6 +933,42 @@ pub fn untangle_params(
         before,
         after,
         at_base,
+    }
+}
+
+/// [`untangle_params`] from the tracked parameters `params`, then, where it leaves images
+/// folded at base vertices of valence over six (whose parallelogram charts overlap), again
+/// from the same parameters with those vertices' fans spread (`spread_fans`), keeping the
+/// second result if it leaves fewer bad images. Returns what the kept untangling left and
+/// the spread mask to build the [`ParamMap`] with (empty: the first was kept).
+///
+/// Preconditions: as [`untangle_params`].
+pub fn untangle_spreading_fans(
+    base: &Mesh,
+    input_tris: &[[u32; 3]],
+    params: &mut [Param],
+    fixed: &[bool],
+    rounds: u32,
+) -> (Untangled, Vec<bool>) {
+    let raw = params.to_vec();
+    let first = untangle_params(base, input_tris, params, fixed, rounds, &[]);
+    tracing::debug!(?first, "folded input-triangle images");
+    let topo = Topology::build(base);
+    let mut spread = vec![false; base.positions.len()];
+    for &w in &first.at_base {
+        spread[w as usize] = topo.vertex_faces(w as usize).len() > CLOSED_VALENCE;
+    }
+    if !spread.contains(&true) {
+        return (first, Vec::new());
+    }
+    let mut again = raw;
+    let second = untangle_params(base, input_tris, &mut again, fixed, rounds, &spread);
+    tracing::debug!(?second, "folded input-triangle images with spread fans");
+    if second.after < first.after {
+        params.copy_from_slice(&again);
+        (second, spread)
+    } else {
+        (first, Vec::new())
     }
 }
 
