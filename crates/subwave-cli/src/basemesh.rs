@@ -32,6 +32,7 @@ struct Report {
 /// Runs `subwave compress-base`.
 pub fn compress(args: &CompressBaseArgs) -> Result<()> {
     let mesh = subwave::io::read_mesh(&args.mesh, None)?;
+    crate::info::require_content(&mesh, &args.mesh)?;
     let opts = BaseMeshOptions {
         position_bits: args.bits,
     };

@@ -15,6 +15,7 @@ use crate::BenchSubdivideArgs;
 pub fn subdivide(args: &BenchSubdivideArgs) -> Result<()> {
     let name = print::path(&args.mesh);
     let mut mesh = subwave::io::read_mesh(&args.mesh, args.format)?;
+    crate::info::require_faces(&mesh, &args.mesh, "subdivide")?;
     mesh.remove_unreferenced();
     let opts = SubdivideOptions {
         scheme: scheme(args.scheme),

@@ -11,6 +11,7 @@ use crate::ConvertArgs;
 pub fn run(args: &ConvertArgs) -> Result<()> {
     let in_name = print::path(&args.input);
     let mut mesh = read_mesh(&args.input, args.from)?;
+    crate::info::require_content(&mesh, &args.input)?;
     crate::info::check(&mesh, &in_name)?;
 
     let unreferenced = mesh.referenced().iter().filter(|&&used| !used).count();

@@ -18,16 +18,39 @@ pub fn check(mesh: &Mesh, path: &str) -> Result<(), Error> {
     })
 }
 
+/// Fails unless `mesh` (read from `path`) holds something: vertices or faces. A file that
+/// parses to nothing (an empty file, or bytes in no statement the reader knows) is refused
+/// rather than converted or reported as an empty mesh.
+pub fn require_content(mesh: &Mesh, path: &std::path::Path) -> Result<()> {
+    if mesh.num_vertices() == 0 && mesh.num_faces() == 0 {
+        anyhow::bail!(
+            "{}: the file holds no vertices and no faces (is it a mesh in this format?)",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
+/// Fails unless `mesh` (read from `path`) has faces, for commands that `task` them (a point
+/// cloud or an empty file has nothing to subdivide or code: refused rather than written
+/// out as an empty mesh).
+pub fn require_faces(mesh: &Mesh, path: &std::path::Path, task: &str) -> Result<()> {
+    require_content(mesh, path)?;
+    if mesh.num_faces() == 0 {
+        anyhow::bail!(
+            "{}: the mesh has no faces ({} vertices only): nothing to {task}",
+            path.display(),
+            mesh.num_vertices()
+        );
+    }
+    Ok(())
+}
+
 /// Reads, checks and reports.
 pub fn run(args: &InfoArgs) -> Result<()> {
     let name = print::path(&args.mesh);
     let mesh = read_mesh(&args.mesh, args.format)?;
-    if mesh.num_vertices() == 0 && mesh.num_faces() == 0 {
-        anyhow::bail!(
-            "{}: the file holds no vertices and no faces",
-            args.mesh.display()
-        );
-    }
+    require_content(&mesh, &args.mesh)?;
     check(&mesh, &name)?;
     let rep = report(&mesh, &Topology::build(&mesh));
     let stdout = std::io::stdout();

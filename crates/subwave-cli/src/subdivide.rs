@@ -110,6 +110,7 @@ pub fn creasing(arg: CreasingArg) -> Creasing {
 /// Runs `subwave subdivide`.
 pub fn run(args: &SubdivideArgs) -> Result<()> {
     let mut mesh = subwave::io::read_mesh(&args.mesh, args.format)?;
+    crate::info::require_faces(&mesh, &args.mesh, "subdivide")?;
     let unreferenced = mesh.referenced().iter().filter(|&&u| !u).count();
     if unreferenced > 0 {
         tracing::warn!(

@@ -181,6 +181,50 @@ fn empty_obj_file() {
     assert!(e.contains("empty.obj"), "{e}");
 }
 
+/// Files that parse to nothing (zero bytes, binary junk in an OBJ, whose unknown statements
+/// the reader skips) or to vertices only are refused by the commands that need content or
+/// faces, instead of being written out as empty meshes.
+#[test]
+fn contentless_files_are_refused() {
+    let d = tmp();
+    let empty = file(d.path(), "empty.obj", b"");
+    let mut junk_bytes: Vec<u8> = (0u32..3000)
+        .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+        .collect();
+    junk_bytes.retain(|&b| b != b'\n');
+    let junk = file(d.path(), "junk.obj", &junk_bytes);
+    let points = file(d.path(), "points.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+    let out = d.path().join("out.obj");
+    let out = out.to_str().unwrap();
+    for p in [&empty, &junk] {
+        for args in [
+            vec!["subdivide", p, "-o", out, "--levels", "1"],
+            vec!["bench", "subdivide", p, "--levels", "1"],
+            vec!["convert", p, out],
+            vec!["compress-base", p, "-o", out],
+        ] {
+            let e = fails(&args);
+            assert!(
+                e.contains(p.as_str()) && e.contains("no vertices and no faces"),
+                "{args:?}: {e}"
+            );
+        }
+    }
+    for args in [
+        vec!["subdivide", &points, "-o", out, "--levels", "1"],
+        vec!["bench", "subdivide", &points, "--levels", "1"],
+    ] {
+        let e = fails(&args);
+        assert!(
+            e.contains("points.obj") && e.contains("no faces (3 vertices only)"),
+            "{args:?}: {e}"
+        );
+    }
+    assert!(!Path::new(out).exists(), "nothing is written");
+    // A point cloud still converts.
+    ok(&["convert", &points, out]);
+}
+
 #[test]
 fn missing_file() {
     let d = tmp();
