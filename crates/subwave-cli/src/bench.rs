@@ -25,6 +25,7 @@ pub fn subdivide(args: &BenchSubdivideArgs) -> Result<()> {
         loop_weights: LoopWeights::Loop,
         sharp_angle: args.sharp_angle,
     };
+    crate::subdivide::check_memory(&mesh, &opts, &args.mesh)?;
     let p = profile_subdivide(&mesh, &opts, args.runs as usize)
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.mesh.display()))?;
     let stdout = std::io::stdout();

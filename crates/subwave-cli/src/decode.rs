@@ -3,7 +3,7 @@
 use std::io::Write;
 
 use anyhow::{bail, Result};
-use subwave::codec::progressive::{decode, inspect, DecodeOptions};
+use subwave::codec::progressive::{decode, inspect, DecodeOptions, Layout};
 use subwave::io::write_mesh;
 
 use crate::print;
@@ -47,13 +47,26 @@ pub fn run(args: &DecodeArgs) -> Result<()> {
         }
         (None, None) => None,
     };
-    let opts = DecodeOptions {
-        max_bytes,
-        trees: match &args.trees {
-            Some(t) => Some(parse_trees(t).map_err(anyhow::Error::msg)?),
-            None => None,
-        },
+    let trees = match &args.trees {
+        Some(t) => Some(parse_trees(t).map_err(anyhow::Error::msg)?),
+        None => None,
     };
+    if let Some(t) = &trees {
+        if info.layout != Layout::Trees {
+            bail!(
+                "{name}: --trees needs a stream of the trees layout (encode with --layout trees); \
+                 this one is embedded, its bit planes span all trees"
+            );
+        }
+        if let Some(&bad) = t.iter().find(|&&x| x >= info.trees) {
+            bail!(
+                "{name}: there is no tree {bad}: the stream has {} trees (0-{})",
+                info.trees,
+                info.trees.saturating_sub(1)
+            );
+        }
+    }
+    let opts = DecodeOptions { max_bytes, trees };
     let d = decode(&bytes, &opts).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     write_mesh(&d.mesh, &args.output, args.to)?;
     let stdout = std::io::stdout();

@@ -92,7 +92,7 @@ pub struct PrepareArgs {
     /// Feature edges of the remesh: dihedral angle in degrees (kept sharp as creases).
     /// Default: 40 when the edges sharper than that form a CAD-like crease network
     /// (`codec::prepare::detect_feature_angle`), else none.
-    #[arg(long, value_name = "DEG")]
+    #[arg(long, value_name = "DEG", value_parser = crate::parse_angle)]
     pub sharp_angle: Option<f64>,
     /// Do not detect feature edges when --sharp-angle is not given.
     #[arg(long)]

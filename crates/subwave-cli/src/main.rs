@@ -364,7 +364,7 @@ pub struct BenchSubdivideArgs {
           value_parser = clap::value_parser!(u32).range(0..=12))]
     pub levels: u32,
     /// Edges whose dihedral angle exceeds DEG degrees become infinitely sharp creases.
-    #[arg(long, value_name = "DEG")]
+    #[arg(long, value_name = "DEG", value_parser = parse_angle)]
     pub sharp_angle: Option<f64>,
     /// Boundary treatment (OpenSubdiv's "edge only" by default, to compare with it).
     #[arg(long, value_enum, default_value = "opensubdiv")]
@@ -405,7 +405,7 @@ pub struct SubdivideArgs {
           value_parser = clap::value_parser!(u32).range(0..=12))]
     pub levels: u32,
     /// Edges whose dihedral angle exceeds DEG degrees become infinitely sharp creases.
-    #[arg(long, value_name = "DEG")]
+    #[arg(long, value_name = "DEG", value_parser = parse_angle)]
     pub sharp_angle: Option<f64>,
     /// Boundary treatment.
     #[arg(long, value_enum, default_value = "crease")]
@@ -476,6 +476,18 @@ fn parse_level_exponent(s: &str) -> Result<f64, String> {
         Ok(x)
     } else {
         Err(format!("{s}: use a multiple of 0.25 between 0 and 8"))
+    }
+}
+
+/// Parses a dihedral angle in degrees for clap: a number from 0 to 180.
+pub fn parse_angle(s: &str) -> Result<f64, String> {
+    let x: f64 = s.parse().map_err(|e| format!("{s}: {e}"))?;
+    if (0.0..=180.0).contains(&x) {
+        Ok(x)
+    } else {
+        Err(format!(
+            "{s}: a dihedral angle is a number of degrees from 0 to 180"
+        ))
     }
 }
 

@@ -43,7 +43,7 @@ pub struct RemeshArgs {
     #[arg(long)]
     pub quads: bool,
     /// Keep edges sharper than this dihedral angle (degrees) as creases on base edges.
-    #[arg(long, value_name = "DEG")]
+    #[arg(long, value_name = "DEG", value_parser = crate::parse_angle)]
     pub sharp_angle: Option<f64>,
     /// Cut non-manifold edges and split non-manifold vertices instead of failing.
     #[arg(long)]
@@ -95,7 +95,7 @@ pub struct BenchRemeshArgs {
     #[arg(long, value_name = "N", default_value_t = 200)]
     pub base_faces: u64,
     /// Feature angle (degrees).
-    #[arg(long, value_name = "DEG")]
+    #[arg(long, value_name = "DEG", value_parser = crate::parse_angle)]
     pub sharp_angle: Option<f64>,
     /// Repair non-manifold input.
     #[arg(long)]

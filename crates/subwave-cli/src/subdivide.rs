@@ -107,6 +107,45 @@ pub fn creasing(arg: CreasingArg) -> Creasing {
     }
 }
 
+/// Bytes of memory a refinement takes per output face, at its peak (input, the last two
+/// levels, the output): measured 71–109 on the bunny's third level (Loop, butterfly,
+/// Catmull-Clark, √3), rounded up.
+const BYTES_PER_FACE: u64 = 128;
+
+/// The memory the system has available (Linux `MemAvailable`), if known.
+fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Refuses a refinement of `mesh` (read from `path`) whose output would not fit in the
+/// memory available (about [`BYTES_PER_FACE`] per output face), before it starts, instead
+/// of letting the system kill the process part way.
+pub fn check_memory(
+    mesh: &subwave::Mesh,
+    opts: &SubdivideOptions,
+    path: &std::path::Path,
+) -> Result<()> {
+    let faces = subwave::subdivision::output_faces(mesh, opts);
+    let need = faces.saturating_mul(BYTES_PER_FACE);
+    match available_memory() {
+        Some(avail) if need > avail => anyhow::bail!(
+            "{}: {} levels of {} on {} faces make {} faces, which need about {} of memory; {} \
+             are available: use fewer levels",
+            path.display(),
+            opts.levels,
+            opts.scheme.name(),
+            mesh.num_faces(),
+            faces,
+            crate::print::size(need),
+            crate::print::size(avail)
+        ),
+        _ => Ok(()),
+    }
+}
+
 /// Runs `subwave subdivide`.
 pub fn run(args: &SubdivideArgs) -> Result<()> {
     let mut mesh = subwave::io::read_mesh(&args.mesh, args.format)?;
@@ -130,6 +169,7 @@ pub fn run(args: &SubdivideArgs) -> Result<()> {
         },
         sharp_angle: args.sharp_angle,
     };
+    check_memory(&mesh, &opts, &args.mesh)?;
     let t = Instant::now();
     let out = if args.limit {
         subdivide_limit_positions(&mesh, &opts)

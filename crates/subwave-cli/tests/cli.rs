@@ -225,6 +225,38 @@ fn contentless_files_are_refused() {
     ok(&["convert", &points, out]);
 }
 
+/// A refinement too large for the memory (or for 32-bit indices) is refused before it
+/// starts, naming the face count and asking for fewer levels, and a dihedral angle outside
+/// 0–180 degrees (or not a number) is refused by the argument parser.
+#[test]
+fn oversized_refinement_and_bad_angles_are_refused() {
+    let d = tmp();
+    let p = put(d.path(), "sphere.obj", &generate::icosphere(2));
+    let out = d.path().join("out.obj");
+    let out = out.to_str().unwrap();
+    // 320 faces: 12 levels are 5.4e9 faces.
+    for args in [
+        vec!["subdivide", &p, "-o", out, "--levels", "12"],
+        vec!["bench", "subdivide", &p, "--levels", "12"],
+    ] {
+        let e = fails(&args);
+        assert!(
+            e.contains("sphere.obj")
+                && e.contains("5368709120 faces")
+                && e.contains("use fewer levels"),
+            "{args:?}: {e}"
+        );
+    }
+    assert!(!Path::new(out).exists());
+    for angle in ["nan", "181", "inf"] {
+        for cmd in ["subdivide", "remesh", "encode"] {
+            let o = run(&[cmd, &p, "-o", out, "--sharp-angle", angle]);
+            assert_eq!(o.status.code(), Some(2), "{cmd} --sharp-angle {angle}");
+            assert!(stderr(&o).contains("from 0 to 180"), "{}", stderr(&o));
+        }
+    }
+}
+
 #[test]
 fn missing_file() {
     let d = tmp();

@@ -79,6 +79,19 @@ fn encode_decode_round_trip_and_prefixes() {
     assert!(out.contains("(complete)"), "{out}");
     let m = read_mesh(&full, None).unwrap();
     assert_eq!(m.num_vertices(), n);
+    // An embedded stream has no trees to choose.
+    let e = fails(&[
+        "decode",
+        swv.to_str().unwrap(),
+        "-o",
+        full.to_str().unwrap(),
+        "--trees",
+        "0",
+    ]);
+    assert!(
+        e.contains("--layout trees") && e.contains("embedded"),
+        "{e}"
+    );
     let low = dir.path().join("low.obj");
     let out = ok(&[
         "decode",
@@ -171,6 +184,19 @@ fn lossless_trees_and_errors() {
         "x",
     ]);
     assert!(e.contains("not a tree number"), "{e}");
+    // Trees past the forest's are refused, not ignored (20 base faces: 30 base edges).
+    let e = fails(&[
+        "decode",
+        swv.to_str().unwrap(),
+        "-o",
+        dec.to_str().unwrap(),
+        "--trees",
+        "2,30",
+    ]);
+    assert!(
+        e.contains("no tree 30") && e.contains("30 trees (0-29)"),
+        "{e}"
+    );
     // Corrupt chunk.
     let mut bytes = std::fs::read(&swv).unwrap();
     let n = bytes.len();

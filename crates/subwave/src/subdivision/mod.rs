@@ -466,6 +466,27 @@ pub(crate) struct Prepared {
     pub(crate) base_holes: Vec<u32>,
 }
 
+/// The number of faces that `opts.levels` levels of `opts.scheme` make of `mesh` (saturating
+/// at `u64::MAX`): `F · 4^L` for triangle and quad/triangle splits, `C · 4^(L−1)` for polygon
+/// splits (`C` corners: each n-gon becomes n quads), `F · 3^L` for √3; `F` for no levels.
+/// [`subdivide`] refuses more than [`MAX_FACES`]; callers can also check the memory the
+/// result needs before they start.
+pub fn output_faces(mesh: &Mesh, opts: &SubdivideOptions) -> u64 {
+    let f = mesh.num_faces() as u64;
+    if opts.levels == 0 {
+        return f;
+    }
+    if opts.scheme == Scheme::Sqrt3 {
+        return f.saturating_mul(3u64.saturating_pow(opts.levels));
+    }
+    match rules_for(opts, mesh).split() {
+        Split::Triangles | Split::QuadTri => f.saturating_mul(4u64.saturating_pow(opts.levels)),
+        Split::Polygons => {
+            (mesh.face_indices.len() as u64).saturating_mul(4u64.saturating_pow(opts.levels - 1))
+        }
+    }
+}
+
 /// Checks `mesh` for `opts` and prepares its level-0 topology (see [`Refinement::build`] for
 /// the errors).
 pub(crate) fn prepare(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Prepared> {
@@ -493,15 +514,7 @@ pub(crate) fn prepare(mesh: &Mesh, opts: &SubdivideOptions) -> Result<Prepared> 
     }
     let rules = rules_for(opts, mesh);
     let split = rules.split();
-    let corners = mesh.face_indices.len() as u64;
-    let faces_out = match split {
-        Split::Triangles | Split::QuadTri => {
-            mesh.num_faces() as u64 * 4u64.saturating_pow(opts.levels)
-        }
-        Split::Polygons => {
-            corners.saturating_mul(4u64.saturating_pow(opts.levels.saturating_sub(1)))
-        }
-    };
+    let faces_out = output_faces(mesh, opts);
     if opts.levels > 0 && faces_out > MAX_FACES {
         return Err(Error::InvalidArgument(format!(
             "{} levels of {} on {} faces would make {} faces, more than the {} supported; use fewer levels",

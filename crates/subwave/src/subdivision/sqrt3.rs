@@ -520,7 +520,7 @@ pub(super) fn build(
         "triangles",
         "use catmull-clark or bilinear (any polygons)",
     )?;
-    let faces_out = (mesh.num_faces() as u64).saturating_mul(3u64.saturating_pow(opts.levels));
+    let faces_out = super::output_faces(mesh, opts);
     if opts.levels > 0 && faces_out > MAX_FACES {
         return Err(Error::InvalidArgument(format!(
             "{} levels of sqrt3 on {} faces would make {} faces, more than the {} supported; use fewer levels",
