@@ -27,12 +27,38 @@ struct Report {
     total_bpv: f64,
     encode_ms: f64,
     decode_ms: f64,
+    /// The input file's vertices: a repair codes more (split) or fewer (unreferenced ones
+    /// dropped).
+    input_vertices: usize,
+    /// Connectivity bits per input vertex.
+    connectivity_bpv_input: f64,
+    /// What `--repair` changed, if it was given and the mesh needed it.
+    repair: Option<subwave::remesh::RepairReport>,
 }
 
 /// Runs `subwave compress-base`.
 pub fn compress(args: &CompressBaseArgs) -> Result<()> {
-    let mesh = subwave::io::read_mesh(&args.mesh, None)?;
+    let mut mesh = subwave::io::read_mesh(&args.mesh, None)?;
     crate::info::require_content(&mesh, &args.mesh)?;
+    let input_vertices = mesh.num_vertices();
+    // Only a mesh the coder refuses as it is gets repaired (a manifold one is coded as is).
+    let needs_repair = args.repair
+        && mesh.num_faces() > 0
+        && subwave::remesh::repair::prepare(&mesh, false).is_err();
+    let repair = if needs_repair {
+        let (pos, tris, report) = subwave::remesh::repair::prepare(&mesh, true)
+            .with_context(|| format!("{}", args.mesh.display()))?;
+        if !mesh.edge_tags.is_empty() || !mesh.vertex_tags.is_empty() {
+            tracing::warn!(
+                "{}: --repair drops the crease and corner tags",
+                args.mesh.display()
+            );
+        }
+        mesh = subwave::Mesh::from_triangles(pos, &tris);
+        Some(report)
+    } else {
+        None
+    };
     let opts = BaseMeshOptions {
         position_bits: args.bits,
     };
@@ -61,6 +87,9 @@ pub fn compress(args: &CompressBaseArgs) -> Result<()> {
         total_bpv: 8.0 * e.bytes.len() as f64 / nv,
         encode_ms,
         decode_ms,
+        input_vertices,
+        connectivity_bpv_input: s.connectivity_bits as f64 / (input_vertices as f64).max(1.0),
+        repair,
     };
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
@@ -74,13 +103,32 @@ pub fn compress(args: &CompressBaseArgs) -> Result<()> {
             print::path(&args.output),
             args.bits
         )?;
+        if let Some(rep) = &r.repair {
+            writeln!(
+                out,
+                "  repaired: {} non-manifold vertices and {} edges split ({} vertices added), {} faces flipped, {} degenerate faces and {} unreferenced vertices dropped",
+                rep.non_manifold_vertices,
+                rep.non_manifold_edges,
+                rep.added_vertices,
+                rep.flipped_faces,
+                rep.degenerate_faces,
+                rep.unreferenced_vertices
+            )?;
+        }
         let mut t = print::Table::new();
         t.row("vertices", print::count(r.vertices as usize))
             .row("faces", print::count(r.faces as usize))
             .row("size", print::size(r.bytes as u64))
             .row(
                 "connectivity",
-                format!("{:.3} bits/vertex", r.connectivity_bpv),
+                if r.vertices as usize == r.input_vertices {
+                    format!("{:.3} bits/vertex", r.connectivity_bpv)
+                } else {
+                    format!(
+                        "{:.3} bits/vertex ({:.3} per input vertex)",
+                        r.connectivity_bpv, r.connectivity_bpv_input
+                    )
+                },
             )
             .row("positions", format!("{:.3} bits/vertex", r.positions_bpv))
             .row("creases", format!("{:.3} bits/vertex", r.crease_bpv))

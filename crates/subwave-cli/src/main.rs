@@ -250,9 +250,17 @@ pub struct CompressBaseArgs {
     #[arg(long, value_name = "B", default_value_t = 14,
           value_parser = clap::value_parser!(u32).range(8..=30))]
     pub bits: u32,
+    /// Code a mesh that is not a consistently oriented 2-manifold after repairing it as
+    /// `remesh --repair` does (a manifold mesh is coded as it is): non-manifold vertices and edges split (the decoded mesh has
+    /// the split vertices as separate vertices at the same positions), orientations made
+    /// consistent, polygons fanned into triangles, degenerate faces and unreferenced vertices
+    /// dropped; vertex attributes and tags are not kept.
+    #[arg(long)]
+    pub repair: bool,
     /// Print JSON (keys vertices, faces, position_bits, bytes, connectivity_bits,
     /// positions_bits, crease_bits, header_bits, connectivity_bpv, positions_bpv, crease_bpv,
-    /// total_bpv, encode_ms, decode_ms).
+    /// total_bpv, encode_ms, decode_ms, input_vertices, connectivity_bpv_input, and repair:
+    /// the repair's counts, or null if none was made).
     #[arg(long)]
     pub json: bool,
 }

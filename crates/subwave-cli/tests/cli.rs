@@ -257,6 +257,66 @@ fn oversized_refinement_and_bad_angles_are_refused() {
     }
 }
 
+/// `compress-base` refuses a non-manifold mesh, naming the vertex; with `--repair` it codes
+/// the mesh with the vertex split (one more vertex, decoded as a manifold mesh) and reports
+/// the repair, and a manifold mesh is coded exactly as without `--repair`.
+#[test]
+fn compress_base_repairs_non_manifold_meshes_on_request() {
+    let d = tmp();
+    // Two fans of three triangles around vertex 0 (a double cone's waist pinched to a point).
+    let mut text = String::from("v 0 0 0\n");
+    for k in 0..3 {
+        let a = k as f64 * 2.0944;
+        text += &format!("v {} {} 1\n", a.cos(), a.sin());
+    }
+    for k in 0..3 {
+        let a = k as f64 * 2.0944 + 0.5;
+        text += &format!("v {} {} -1\n", a.cos(), a.sin());
+    }
+    text += "f 1 2 3\nf 1 3 4\nf 1 4 2\nf 1 6 5\nf 1 7 6\nf 1 5 7\n";
+    let bowtie = file(d.path(), "bowtie.obj", text.as_bytes());
+    let out = d.path().join("b.swb");
+    let out = out.to_str().unwrap();
+    let e = fails(&["compress-base", &bowtie, "-o", out]);
+    assert!(
+        e.contains("bowtie.obj") && e.contains("non-manifold"),
+        "{e}"
+    );
+    let j: Value = serde_json::from_str(&ok(&[
+        "compress-base",
+        &bowtie,
+        "-o",
+        out,
+        "--repair",
+        "--json",
+    ]))
+    .unwrap();
+    assert_eq!(j["input_vertices"], 7, "{j}");
+    assert_eq!(j["vertices"], 8, "{j}");
+    assert_eq!(j["repair"]["non_manifold_vertices"], 1, "{j}");
+    let dec = d.path().join("b.obj");
+    let dec = dec.to_str().unwrap();
+    ok(&["decompress-base", out, "-o", dec]);
+    let info = info_json(dec);
+    assert_eq!(info["vertices"], 8, "{info}");
+    assert_eq!(info["non_manifold_vertices"], 0, "{info}");
+    // A manifold mesh: the same stream with or without --repair.
+    let sphere = put(d.path(), "sphere.obj", &generate::icosphere(2));
+    let (a, b) = (d.path().join("a.swb"), d.path().join("b2.swb"));
+    ok(&["compress-base", &sphere, "-o", a.to_str().unwrap()]);
+    let j: Value = serde_json::from_str(&ok(&[
+        "compress-base",
+        &sphere,
+        "-o",
+        b.to_str().unwrap(),
+        "--repair",
+        "--json",
+    ]))
+    .unwrap();
+    assert!(j["repair"].is_null(), "{j}");
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+}
+
 #[test]
 fn missing_file() {
     let d = tmp();
