@@ -63,8 +63,19 @@ pub fn compress(args: &CompressBaseArgs) -> Result<()> {
         position_bits: args.bits,
     };
     let t0 = Instant::now();
-    let e = basemesh::encode_with_info(&mesh, &opts)
-        .with_context(|| format!("{}", args.mesh.display()))?;
+    let e = basemesh::encode_with_info(&mesh, &opts).map_err(|e| {
+        // A mesh the repair would make codable: say so.
+        let hint = if !args.repair
+            && mesh.num_faces() > 0
+            && subwave::remesh::repair::prepare(&mesh, false).is_err()
+            && subwave::remesh::repair::prepare(&mesh, true).is_ok()
+        {
+            " (pass --repair to code it with its non-manifold vertices and edges split)"
+        } else {
+            ""
+        };
+        anyhow::anyhow!("{}: {e}{hint}", args.mesh.display())
+    })?;
     let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
     let t0 = Instant::now();
     basemesh::decode(&e.bytes)?;

@@ -279,7 +279,7 @@ fn compress_base_repairs_non_manifold_meshes_on_request() {
     let out = out.to_str().unwrap();
     let e = fails(&["compress-base", &bowtie, "-o", out]);
     assert!(
-        e.contains("bowtie.obj") && e.contains("non-manifold"),
+        e.contains("bowtie.obj") && e.contains("non-manifold") && e.contains("pass --repair"),
         "{e}"
     );
     let j: Value = serde_json::from_str(&ok(&[
