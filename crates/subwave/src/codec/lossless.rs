@@ -82,7 +82,7 @@ use rayon::prelude::*;
 use super::basemesh;
 use super::container::{ChunkEntry, ChunkKind, Container};
 use super::quantize::Grid;
-use super::rangecoder::{Bit, Decoder, Encoder, UInt};
+use super::rangecoder::{CountedBit, Decoder, Encoder, UInt};
 use crate::hierarchy::Hierarchy;
 use crate::mesh::Mesh;
 use crate::subdivision::refine::Split;
@@ -140,16 +140,16 @@ fn round_phase(p: f64) -> (i64, u8) {
 
 /// The adaptive models of one level.
 struct Models {
-    zero: Vec<Bit>,
-    sign: Vec<Bit>,
-    mags: Vec<UInt>,
+    zero: Vec<CountedBit>,
+    sign: Vec<CountedBit>,
+    mags: Vec<UInt<CountedBit>>,
 }
 
 impl Models {
     fn new() -> Self {
         Models {
-            zero: vec![Bit::new(); 3 * CLASSES * PHASES],
-            sign: vec![Bit::new(); 3 * 3 * PHASES],
+            zero: vec![CountedBit::default(); 3 * CLASSES * PHASES],
+            sign: vec![CountedBit::default(); 3 * 3 * PHASES],
             mags: vec![UInt::new(); 3 * CLASSES],
         }
     }

@@ -959,9 +959,9 @@ fn reindex(h: &Hierarchy, base: &Mesh, vertex_map: &[u32]) -> Result<Hierarchy> 
 /// documentation).
 pub fn encode_base(base: &Mesh, q: &[[i64; 3]]) -> Vec<u8> {
     let mut enc = Encoder::new();
-    let mut arity = UInt::new();
+    let mut arity: UInt = UInt::new();
     let mut new_ctx = Bit::new();
-    let mut index = UInt::new();
+    let mut index: UInt = UInt::new();
     let polygons = !base.is_triangle_mesh();
     let mut next = 0u32;
     for f in base.faces() {
@@ -978,7 +978,7 @@ pub fn encode_base(base: &Mesh, q: &[[i64; 3]]) -> Vec<u8> {
             }
         }
     }
-    let mut coord = [SInt::new(), SInt::new(), SInt::new()];
+    let mut coord: [SInt; 3] = [SInt::new(), SInt::new(), SInt::new()];
     let mut prev = [0i64; 3];
     for p in q {
         for c in 0..3 {
@@ -1009,9 +1009,9 @@ pub fn decode_base(
         message: format!("base mesh chunk: {m}"),
     };
     let mut dec = Decoder::new(bytes);
-    let mut arity = UInt::new();
+    let mut arity: UInt = UInt::new();
     let mut new_ctx = Bit::new();
-    let mut index = UInt::new();
+    let mut index: UInt = UInt::new();
     let mut mesh = Mesh::new();
     mesh.face_offsets = Vec::with_capacity(nf + 1);
     mesh.face_offsets.push(0);
@@ -1053,7 +1053,7 @@ pub fn decode_base(
             mesh.face_indices.len()
         )));
     }
-    let mut coord = [SInt::new(), SInt::new(), SInt::new()];
+    let mut coord: [SInt; 3] = [SInt::new(), SInt::new(), SInt::new()];
     let mut q = Vec::with_capacity(nv);
     let mut prev = [0i64; 3];
     for _ in 0..nv {

@@ -29,7 +29,7 @@
 //! Encoder and decoder share the border data structure (`Border::apply`) and the symbol
 //! flow (`code_face`, generic over the direction), so they cannot diverge.
 
-use crate::codec::rangecoder::{Bit, Decoder, Encoder, UInt};
+use crate::codec::rangecoder::{CountedBit, Decoder, Encoder, UInt};
 use crate::mesh::Mesh;
 use crate::{Error, Result};
 
@@ -391,19 +391,19 @@ impl Border {
 /// The two directions of the coder, so that one function describes the symbol flow.
 trait BitIo {
     /// Codes (or decodes) a bit; returns the bit.
-    fn bit(&mut self, ctx: &mut Bit, value: bool) -> bool;
+    fn bit(&mut self, ctx: &mut CountedBit, value: bool) -> bool;
     /// Codes (or decodes) an integer; returns it.
-    fn uint(&mut self, model: &mut UInt, value: u32) -> u32;
+    fn uint(&mut self, model: &mut UInt<CountedBit>, value: u32) -> u32;
 }
 
 impl BitIo for Encoder {
     #[inline]
-    fn bit(&mut self, ctx: &mut Bit, value: bool) -> bool {
+    fn bit(&mut self, ctx: &mut CountedBit, value: bool) -> bool {
         Encoder::bit(self, ctx, value);
         value
     }
     #[inline]
-    fn uint(&mut self, model: &mut UInt, value: u32) -> u32 {
+    fn uint(&mut self, model: &mut UInt<CountedBit>, value: u32) -> u32 {
         model.encode(self, value);
         value
     }
@@ -411,11 +411,11 @@ impl BitIo for Encoder {
 
 impl BitIo for Decoder<'_> {
     #[inline]
-    fn bit(&mut self, ctx: &mut Bit, _: bool) -> bool {
+    fn bit(&mut self, ctx: &mut CountedBit, _: bool) -> bool {
         Decoder::bit(self, ctx)
     }
     #[inline]
-    fn uint(&mut self, model: &mut UInt, _: u32) -> u32 {
+    fn uint(&mut self, model: &mut UInt<CountedBit>, _: u32) -> u32 {
         model.decode(self)
     }
 }
@@ -425,33 +425,33 @@ const CNT_CAP: usize = 15;
 
 /// The adaptive models.
 struct Models {
-    degree_same: [Bit; 3],
-    degree: [UInt; 3],
-    fwd_first: Vec<Bit>,
-    back_first: Vec<Bit>,
-    fwd_more: [Bit; 12],
-    back_more: [Bit; 12],
-    closure: [Bit; 3],
-    existing: [Bit; 3],
-    dummy: Bit,
-    same_loop: Bit,
-    offset: UInt,
-    loop_index: UInt,
+    degree_same: [CountedBit; 3],
+    degree: [UInt<CountedBit>; 3],
+    fwd_first: Vec<CountedBit>,
+    back_first: Vec<CountedBit>,
+    fwd_more: [CountedBit; 12],
+    back_more: [CountedBit; 12],
+    closure: [CountedBit; 3],
+    existing: [CountedBit; 3],
+    dummy: CountedBit,
+    same_loop: CountedBit,
+    offset: UInt<CountedBit>,
+    loop_index: UInt<CountedBit>,
 }
 
 impl Models {
     fn new() -> Self {
         Models {
-            degree_same: [Bit::new(); 3],
+            degree_same: [CountedBit::default(); 3],
             degree: [UInt::new(), UInt::new(), UInt::new()],
-            fwd_first: vec![Bit::new(); 3 * 3 * 2 * (CNT_CAP + 1)],
-            back_first: vec![Bit::new(); 3 * 3 * 2 * (CNT_CAP + 1)],
-            fwd_more: [Bit::new(); 12],
-            back_more: [Bit::new(); 12],
-            closure: [Bit::new(); 3],
-            existing: [Bit::new(); 3],
-            dummy: Bit::new(),
-            same_loop: Bit::new(),
+            fwd_first: vec![CountedBit::default(); 3 * 3 * 2 * (CNT_CAP + 1)],
+            back_first: vec![CountedBit::default(); 3 * 3 * 2 * (CNT_CAP + 1)],
+            fwd_more: [CountedBit::default(); 12],
+            back_more: [CountedBit::default(); 12],
+            closure: [CountedBit::default(); 3],
+            existing: [CountedBit::default(); 3],
+            dummy: CountedBit::default(),
+            same_loop: CountedBit::default(),
             offset: UInt::new(),
             loop_index: UInt::new(),
         }
@@ -851,7 +851,7 @@ pub(crate) fn encode(mesh: &Mesh, enc: &mut Encoder) -> Result<EncodedConnectivi
             >= VALENCE_CONTEXT_VERTICES,
     };
     let mut m = Models::new();
-    enc.bit(&mut Bit::new(), st.all_triangles);
+    enc.bit(&mut CountedBit::default(), st.all_triangles);
     let mut out = Output {
         offsets: vec![0],
         indices: Vec::with_capacity(aug_indices.len()),
@@ -1100,7 +1100,7 @@ pub(crate) fn decode(
         valence_context: aug_vertices >= VALENCE_CONTEXT_VERTICES,
     };
     let mut m = Models::new();
-    st.all_triangles = dec.bit(&mut Bit::new());
+    st.all_triangles = dec.bit(&mut CountedBit::default());
     let mut out = Output {
         offsets: Vec::with_capacity(cap(declared.augmented_faces + 1)),
         indices: Vec::with_capacity(cap(aug_corners)),

@@ -12,7 +12,7 @@
 
 use std::collections::{BTreeMap, HashMap};
 
-use crate::codec::rangecoder::{Bit, Decoder, Encoder, UInt};
+use crate::codec::rangecoder::{CountedBit, Decoder, Encoder, UInt};
 use crate::mesh::{EdgeTag, Mesh, VertexTag, SHARPNESS_INFINITE};
 
 use super::connectivity::corners_by_edge;
@@ -54,9 +54,9 @@ pub(crate) fn edge_list(mesh: &Mesh) -> Vec<[u32; 2]> {
 }
 
 struct Models {
-    count: UInt,
-    gap: UInt,
-    same: Bit,
+    count: UInt<CountedBit>,
+    gap: UInt<CountedBit>,
+    same: CountedBit,
 }
 
 impl Models {
@@ -64,7 +64,7 @@ impl Models {
         Models {
             count: UInt::new(),
             gap: UInt::new(),
-            same: Bit::new(),
+            same: CountedBit::default(),
         }
     }
 }

@@ -18,9 +18,15 @@
 //! - [`creases`]: the crease flags of the edges as a run-length coded binary vector and the
 //!   corner tags likewise (Lavoué et al. §VII.1), with their sharpness values.
 //!
-//! All entropy coding uses the adaptive binary range coder of [`crate::codec::rangecoder`].
+//! All entropy coding uses the adaptive binary range coder of [`crate::codec::rangecoder`],
+//! with contexts that adapt fast while young ([`crate::codec::rangecoder::CountedBit`]): a
+//! base mesh has hundreds of contexts and often only a few hundred vertices.
 //!
-//! # Bitstream (version 1)
+//! # Bitstream (version 2)
+//!
+//! Version 2 codes exactly the symbols of version 1 with `CountedBit` contexts instead of
+//! fixed-rate ones (connectivity of the corpus meshes 1–20% smaller: beetle 3,536 → 3,328
+//! bits, suzanne 1,128 → 904).
 //!
 //! ```text
 //! "SWBM" version:u8 position_bits:u8
@@ -59,7 +65,7 @@ use crate::{Error, Result};
 /// Bitstream magic.
 const MAGIC: &[u8; 4] = b"SWBM";
 /// Bitstream version written by [`encode`]; [`decode`] accepts only this one.
-pub const VERSION: u8 = 1;
+pub const VERSION: u8 = 2;
 
 /// Elements a decoder accepts per byte of stream: a bound on declared counts, checked before
 /// anything is allocated. Every vertex costs at least three adaptive binary decisions of at

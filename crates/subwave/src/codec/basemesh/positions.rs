@@ -18,7 +18,7 @@
 //! axes of the same vertex already coded (flat regions code small residuals cheaply, detailed
 //! ones do not pollute their statistics).
 
-use crate::codec::rangecoder::{Decoder, Encoder, UInt};
+use crate::codec::rangecoder::{CountedBit, Decoder, Encoder, UInt};
 
 use super::connectivity::HalfEdges;
 use super::ChunkError;
@@ -150,7 +150,7 @@ fn mag_class(r: [i64; 3]) -> u8 {
 /// train many contexts: the magnitude classes are merged below [`FULL_CONTEXTS`] vertices
 /// and dropped below [`SOME_CONTEXTS`].
 struct Models {
-    mags: Vec<UInt>,
+    mags: Vec<UInt<CountedBit>>,
     /// `None`: one class; `Some(s)`: class = expected bit length >> s.
     shift: Option<u32>,
 }
@@ -176,7 +176,7 @@ impl Models {
 
     /// The model of `axis`: the expected magnitude is the neighbours' residual size `nb`
     /// (a bit length), averaged with the size of the axes of this vertex already coded.
-    fn model(&mut self, nb: usize, axis: usize, r: &[i64; 3]) -> &mut UInt {
+    fn model(&mut self, nb: usize, axis: usize, r: &[i64; 3]) -> &mut UInt<CountedBit> {
         let Some(shift) = self.shift else {
             return &mut self.mags[axis];
         };
