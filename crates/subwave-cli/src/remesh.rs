@@ -163,11 +163,9 @@ pub fn run(args: &RemeshArgs) -> Result<()> {
     } else {
         None
     };
+    // Printed once, by the log (stderr, shown at its default level); JSON also lists them.
     for w in &r.warnings {
         tracing::warn!("{w}");
-        if !args.json {
-            eprintln!("warning: {w}");
-        }
     }
     let mut base_output = None;
     if let Some(out) = &args.output {
