@@ -35,10 +35,21 @@ pub fn run(args: &DistanceArgs) -> Result<()> {
             .row("psnr", format!("{:.2} dB", d.psnr))
             .row("rms A→B", rel(d.rms_ab))
             .row("rms B→A", rel(d.rms_ba))
-            .row("max A→B", rel(d.ab.max))
-            .row("max B→A", rel(d.ba.max));
+            .row(
+                "max A→B",
+                format!("{}  at {}", rel(d.ab.max), point(d.ab.farthest)),
+            )
+            .row(
+                "max B→A",
+                format!("{}  at {}", rel(d.ba.max), point(d.ba.farthest)),
+            );
         t.write(&mut out, "  ")?;
     }
     out.flush()?;
     Ok(())
+}
+
+/// A point as `(x, y, z)` with 4 significant digits.
+pub(crate) fn point(p: [f64; 3]) -> String {
+    format!("({:.4e}, {:.4e}, {:.4e})", p[0], p[1], p[2])
 }

@@ -42,6 +42,9 @@ pub struct OneSided {
     pub mean: f64,
     /// Largest distance over the area samples and the vertices (one-sided Hausdorff).
     pub max: f64,
+    /// Where [`OneSided::max`] is measured: the sample or vertex of the measured surface
+    /// farthest from the other (the place a remesh misses most, say).
+    pub farthest: [f64; 3],
     /// Number of area samples (the vertices come on top).
     pub samples: usize,
 }
@@ -177,25 +180,45 @@ pub fn sample_surface(positions: &[DVec3], tris: &[[u32; 3]], count: usize) -> V
 
 /// Area samples and vertices of one surface measured against a BVH of the other.
 fn one_sided(samples: &[DVec3], vertices: &[DVec3], target: &ClosestPoint) -> OneSided {
-    let vmax = vertices
+    // The larger distance, and of equal ones the first point (a deterministic reduction).
+    let farther = |x: (f64, usize), y: (f64, usize)| {
+        if y.0 > x.0 || (y.0 == x.0 && y.1 < x.1) {
+            y
+        } else {
+            x
+        }
+    };
+    let (vmax, vat) = vertices
         .par_iter()
-        .map(|&p| target.distance(p))
-        .reduce(|| 0.0, f64::max);
-    let (sum, sum2, max) = samples
+        .enumerate()
+        .map(|(i, &p)| (target.distance(p), i))
+        .reduce(|| (0.0, usize::MAX), farther);
+    let (sum, sum2, (max, at)) = samples
         .par_iter()
-        .map(|&p| {
+        .enumerate()
+        .map(|(i, &p)| {
             let d = target.distance(p);
-            (d, d * d, d)
+            (d, d * d, (d, i))
         })
         .reduce(
-            || (0.0, 0.0, 0.0f64),
-            |x, y| (x.0 + y.0, x.1 + y.1, x.2.max(y.2)),
+            || (0.0, 0.0, (0.0f64, usize::MAX)),
+            |x, y| (x.0 + y.0, x.1 + y.1, farther(x.2, y.2)),
         );
     let n = samples.len().max(1) as f64;
+    let farthest = if vmax > max {
+        vertices[vat]
+    } else {
+        samples
+            .get(at)
+            .or(vertices.get(vat))
+            .copied()
+            .unwrap_or_default()
+    };
     OneSided {
         rms: (sum2 / n).sqrt(),
         mean: sum / n,
         max: max.max(vmax),
+        farthest: farthest.to_array(),
         samples: samples.len(),
     }
 }
@@ -327,6 +350,10 @@ mod tests {
             d.rms_ab
         );
         assert!(sampled_rms_to(&b, &qa, 20_000).unwrap() < 1e-12);
+        // The farthest point of A is where A is 2 away from B, on A.
+        let far = DVec3::from_array(d.ab.farthest);
+        assert!((qb.distance(far) - 2.0).abs() < 1e-9, "{far}");
+        assert!(qa.distance(far) < 1e-12, "{far}");
     }
 
     #[test]
