@@ -28,13 +28,22 @@ const TOP: u32 = 1 << 24;
 
 /// An adaptive binary probability model: what [`Encoder::bit`] and [`Decoder::bit`] code
 /// with. Implementations: [`Bit`] (a fixed adaptation rate, the fastest to decode) and
-/// [`CountedBit`] (a rate that starts fast, for models that code few bits).
-pub trait BitModel: Copy + Default {
+/// [`CountedBit`] (a rate that starts fast, for models that code few bits). The trait is
+/// sealed: the coder's termination and the decoders' allocation bounds rely on the
+/// probability range of these two.
+pub trait BitModel: sealed::Sealed + Copy + Default {
     /// The probability that the next bit is 0, in 1/4096: in `1..=4095`, whatever bits
     /// were coded.
     fn p0(&self) -> u32;
     /// Updates the model after coding `bit`.
     fn update(&mut self, bit: bool);
+}
+
+mod sealed {
+    /// Implemented by the crate's bit models only.
+    pub trait Sealed {}
+    impl Sealed for super::Bit {}
+    impl Sealed for super::CountedBit {}
 }
 
 /// Moves `p` (the probability of a 0, in 1/4096) by `1/2^shift` of the distance to 0 (after
@@ -89,10 +98,9 @@ const COUNTED_RATE: [u8; 16] = [1, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 4, 4, ADA
 /// An adaptive binary context whose adaptation rate starts fast and slows down to [`Bit`]'s
 /// (by 1/2 of the distance after its first bit, then 1/4 for two bits, 1/8 for four, 1/16
 /// for eight, and 1/32 from its 16th bit on): for models with many contexts that each see
-/// few bits, as in the
-/// base-mesh and lossless coders (the base mesh of the beetle codes 8% fewer connectivity
-/// bits with it). Its probability stays in `31..=4065`, as [`Bit`]'s: a monotone run reaches
-/// at most `4096 − 200` before the last rate applies.
+/// few bits, as in the base-mesh and lossless coders (the base mesh of the beetle codes 6%
+/// fewer connectivity bits with it). Its probability stays in `31..=4065`, as [`Bit`]'s: a
+/// monotone run reaches at most `4096 − 200` before the last rate applies.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CountedBit {
     p: u16,
