@@ -117,12 +117,13 @@ pub fn compress(args: &CompressBaseArgs) -> Result<()> {
         if let Some(rep) = &r.repair {
             writeln!(
                 out,
-                "  repaired: {} non-manifold vertices and {} edges split ({} vertices added), {} faces flipped, {} degenerate faces and {} unreferenced vertices dropped",
+                "  repaired: {} non-manifold vertices and {} edges split ({} vertices added), {} faces flipped, {} degenerate and {} duplicate faces and {} unreferenced vertices dropped",
                 rep.non_manifold_vertices,
                 rep.non_manifold_edges,
                 rep.added_vertices,
                 rep.flipped_faces,
                 rep.degenerate_faces,
+                rep.duplicate_faces,
                 rep.unreferenced_vertices
             )?;
         }

@@ -102,6 +102,30 @@ fn non_manifold_input_fails_with_the_elements_then_repairs() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["repair"]["non_manifold_vertices"], 1);
     assert_eq!(v["faces"], 8);
+    // The repair is reported, not only counted.
+    let repaired =
+        "repaired the input into a manifold: split 1 non-manifold vertex(es); 1 vertices added";
+    assert!(
+        v["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str() == Some(repaired)),
+        "{v}"
+    );
+    // `encode` repairs an irregular input without being asked: it says so.
+    let swv = dir.path().join("bowtie.swv");
+    let o = run(&[
+        "encode",
+        &input,
+        "-o",
+        swv.to_str().unwrap(),
+        "--levels",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains(repaired), "{err}");
 }
 
 #[test]

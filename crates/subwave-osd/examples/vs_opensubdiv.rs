@@ -70,6 +70,8 @@ fn main() {
     reset_peak_rss();
     let mut t = Vec::new();
     let mut faces = 0;
+    // One untimed warm-up run, as `profile_subdivide` does for subwave.
+    refine_timed(&mesh, &opts).expect("OpenSubdiv refines the mesh");
     for _ in 0..runs {
         let (m, timing) = refine_timed(&mesh, &opts).expect("OpenSubdiv refines the mesh");
         faces = m.num_faces();

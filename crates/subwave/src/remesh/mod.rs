@@ -230,9 +230,24 @@ pub fn remesh_with_progress(
     }
     if repair.degenerate_faces > 0 {
         warnings.push(format!(
-            "removed {} degenerate face(s) (repeated vertex or zero area)",
+            "removed {} degenerate face(s) (a repeated vertex or zero area)",
             repair.degenerate_faces
         ));
+    }
+    if repair.duplicate_faces > 0 {
+        warnings.push(format!(
+            "removed {} duplicate face(s) (the three vertices of an earlier face)",
+            repair.duplicate_faces
+        ));
+    }
+    if repair.unreferenced_vertices > 0 {
+        warnings.push(format!(
+            "dropped {} vertex(es) that no kept face uses (a remesh samples the surface only)",
+            repair.unreferenced_vertices
+        ));
+    }
+    if let Some(changes) = repair.repair_summary() {
+        warnings.push(format!("repaired the input into a manifold: {changes}"));
     }
     let prepared = Mesh::from_triangles(pos.clone(), &tris);
     let features: simplify::PairSet = match opts.sharp_angle {

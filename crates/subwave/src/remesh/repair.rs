@@ -22,9 +22,11 @@ use crate::{MeshError, Result};
 /// What [`prepare`] changed in the input.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct RepairReport {
-    /// Faces removed because they repeat a vertex, have (nearly) zero area, or duplicate an
-    /// earlier face's vertex set.
+    /// Faces removed because they repeat a vertex or have (nearly) zero area.
     pub degenerate_faces: usize,
+    /// Faces removed because an earlier face has the same three vertices (in either
+    /// orientation).
+    pub duplicate_faces: usize,
     /// Vertices no face used (dropped).
     pub unreferenced_vertices: usize,
     /// Non-manifold edges cut (only with repair).
@@ -35,6 +37,42 @@ pub struct RepairReport {
     pub flipped_faces: usize,
     /// Vertices added by splitting.
     pub added_vertices: usize,
+}
+
+impl RepairReport {
+    /// What the manifold repair changed in the surface (cut edges, split vertices, flipped
+    /// faces), as one clause for a warning; `None` if it changed nothing. Removed degenerate
+    /// and duplicate faces and dropped vertices are not part of it (the remesher reports them
+    /// apart, with or without repair).
+    pub fn repair_summary(&self) -> Option<String> {
+        let mut parts = Vec::new();
+        if self.non_manifold_edges > 0 {
+            parts.push(format!(
+                "cut {} non-manifold edge(s) into boundary edges",
+                self.non_manifold_edges
+            ));
+        }
+        if self.non_manifold_vertices > 0 {
+            parts.push(format!(
+                "split {} non-manifold vertex(es)",
+                self.non_manifold_vertices
+            ));
+        }
+        if self.flipped_faces > 0 {
+            parts.push(format!(
+                "flipped {} face(s) to orient their component consistently",
+                self.flipped_faces
+            ));
+        }
+        if parts.is_empty() {
+            return None;
+        }
+        let mut s = parts.join(", ");
+        if self.added_vertices > 0 {
+            s += &format!("; {} vertices added", self.added_vertices);
+        }
+        Some(s)
+    }
 }
 
 /// The triangles of `mesh` ready for remeshing: polygons fanned (a quad along a diagonal
@@ -63,7 +101,7 @@ pub fn prepare(mesh: &Mesh, repair: bool) -> Result<(Vec<DVec3>, Vec<[u32; 3]>, 
         let mut sorted = t;
         sorted.sort_unstable();
         if !seen.insert(sorted) {
-            report.degenerate_faces += 1;
+            report.duplicate_faces += 1;
             continue;
         }
         let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
@@ -311,10 +349,34 @@ mod tests {
         let extra = (m.positions.len() - 1) as u32;
         m.push_face(&[0, 1, 0]);
         m.push_face(&[0, extra, 1]);
+        // A face on the vertices of an earlier one, reversed: a duplicate.
+        let f0 = m.face(0).to_vec();
+        m.push_face(&[f0[2], f0[1], f0[0]]);
         let (p, t, r) = prepare(&m, false).unwrap();
         assert_eq!(t.len(), n);
-        assert_eq!(r.degenerate_faces, 2);
+        assert_eq!((r.degenerate_faces, r.duplicate_faces), (2, 1));
         assert_eq!(r.unreferenced_vertices, 1);
         assert_eq!(p.len(), 12);
+        assert_eq!(r.repair_summary(), None, "nothing cut, split or flipped");
+    }
+
+    /// The repair's summary names what it changed.
+    #[test]
+    fn repair_summary_names_the_changes() {
+        // Two triangles traversing their shared edge in the same direction.
+        let p = vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::new(1.0, 1.0, 1.0)];
+        let m = Mesh::from_faces(p, vec![vec![0, 1, 2], vec![0, 1, 3]]);
+        assert!(prepare(&m, false).is_err());
+        let (_, _, r) = prepare(&m, true).unwrap();
+        assert_eq!(
+            r.repair_summary().as_deref(),
+            Some("flipped 1 face(s) to orient their component consistently")
+        );
+        let (_, _, r) = prepare(&generate::fin(), true).unwrap();
+        let s = r.repair_summary().unwrap();
+        assert!(
+            s.starts_with("cut 1 non-manifold edge(s) into boundary edges"),
+            "{s}"
+        );
     }
 }
