@@ -380,7 +380,7 @@ pub struct BenchSubdivideArgs {
     /// How semi-sharp creases relax.
     #[arg(long, value_enum, default_value = "uniform")]
     pub creasing: subdivide::CreasingArg,
-    /// Runs per median.
+    /// Runs per median (each phase runs once more first, untimed, as a warm-up).
     #[arg(long, value_name = "K", default_value_t = 5,
           value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub runs: u32,

@@ -228,27 +228,7 @@ pub fn remesh_with_progress(
             "the mesh has no (non-degenerate) faces to remesh".to_string(),
         ));
     }
-    if repair.degenerate_faces > 0 {
-        warnings.push(format!(
-            "removed {} degenerate face(s) (a repeated vertex or zero area)",
-            repair.degenerate_faces
-        ));
-    }
-    if repair.duplicate_faces > 0 {
-        warnings.push(format!(
-            "removed {} duplicate face(s) (the three vertices of an earlier face)",
-            repair.duplicate_faces
-        ));
-    }
-    if repair.unreferenced_vertices > 0 {
-        warnings.push(format!(
-            "dropped {} vertex(es) that no kept face uses (a remesh samples the surface only)",
-            repair.unreferenced_vertices
-        ));
-    }
-    if let Some(changes) = repair.repair_summary() {
-        warnings.push(format!("repaired the input into a manifold: {changes}"));
-    }
+    warnings.extend(repair.warnings());
     let prepared = Mesh::from_triangles(pos.clone(), &tris);
     let features: simplify::PairSet = match opts.sharp_angle {
         Some(deg) => {

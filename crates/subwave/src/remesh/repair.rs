@@ -42,37 +42,72 @@ pub struct RepairReport {
 impl RepairReport {
     /// What the manifold repair changed in the surface (cut edges, split vertices, flipped
     /// faces), as one clause for a warning; `None` if it changed nothing. Removed degenerate
-    /// and duplicate faces and dropped vertices are not part of it (the remesher reports them
-    /// apart, with or without repair).
+    /// and duplicate faces and dropped vertices are not part of it ([`RepairReport::warnings`]
+    /// lists them apart: they are removed with or without repair).
     pub fn repair_summary(&self) -> Option<String> {
-        let mut parts = Vec::new();
-        if self.non_manifold_edges > 0 {
-            parts.push(format!(
-                "cut {} non-manifold edge(s) into boundary edges",
-                self.non_manifold_edges
-            ));
+        let s = counted(&[
+            (
+                self.non_manifold_edges,
+                "cut",
+                "non-manifold edge(s) into boundary edges",
+            ),
+            (
+                self.non_manifold_vertices,
+                "split",
+                "non-manifold vertex(es)",
+            ),
+            (
+                self.flipped_faces,
+                "flipped",
+                "face(s) to orient their component consistently",
+            ),
+        ])
+        .join(", ");
+        if s.is_empty() {
+            None
+        } else if self.added_vertices > 0 {
+            Some(format!("{s}; {} vertices added", self.added_vertices))
+        } else {
+            Some(s)
         }
-        if self.non_manifold_vertices > 0 {
-            parts.push(format!(
-                "split {} non-manifold vertex(es)",
-                self.non_manifold_vertices
-            ));
-        }
-        if self.flipped_faces > 0 {
-            parts.push(format!(
-                "flipped {} face(s) to orient their component consistently",
-                self.flipped_faces
-            ));
-        }
-        if parts.is_empty() {
-            return None;
-        }
-        let mut s = parts.join(", ");
-        if self.added_vertices > 0 {
-            s += &format!("; {} vertices added", self.added_vertices);
-        }
-        Some(s)
     }
+
+    /// One warning per kind of change to the input (the remesher's report): degenerate and
+    /// duplicate faces removed, vertices on no kept face dropped, then the manifold repair
+    /// ([`RepairReport::repair_summary`]).
+    pub fn warnings(&self) -> Vec<String> {
+        let mut w = counted(&[
+            (
+                self.degenerate_faces,
+                "removed",
+                "degenerate face(s) (a repeated vertex or zero area)",
+            ),
+            (
+                self.duplicate_faces,
+                "removed",
+                "duplicate face(s) (the three vertices of an earlier face)",
+            ),
+            (
+                self.unreferenced_vertices,
+                "dropped",
+                "vertex(es) that no kept face uses (a remesh samples the surface only)",
+            ),
+        ]);
+        w.extend(
+            self.repair_summary()
+                .map(|s| format!("repaired the input into a manifold: {s}")),
+        );
+        w
+    }
+}
+
+/// `"{verb} {n} {what}"` for each entry with a positive count.
+fn counted(entries: &[(usize, &str, &str)]) -> Vec<String> {
+    entries
+        .iter()
+        .filter(|e| e.0 > 0)
+        .map(|(n, verb, what)| format!("{verb} {n} {what}"))
+        .collect()
 }
 
 /// The triangles of `mesh` ready for remeshing: polygons fanned (a quad along a diagonal
@@ -358,6 +393,14 @@ mod tests {
         assert_eq!(r.unreferenced_vertices, 1);
         assert_eq!(p.len(), 12);
         assert_eq!(r.repair_summary(), None, "nothing cut, split or flipped");
+        assert_eq!(
+            r.warnings(),
+            [
+                "removed 2 degenerate face(s) (a repeated vertex or zero area)",
+                "removed 1 duplicate face(s) (the three vertices of an earlier face)",
+                "dropped 1 vertex(es) that no kept face uses (a remesh samples the surface only)",
+            ]
+        );
     }
 
     /// The repair's summary names what it changed.
