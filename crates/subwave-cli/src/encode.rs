@@ -177,7 +177,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
             t.relax_ms,
             // What follows the remesh: the normal re-sampling, if it ran (and the remeshes
             // that missed part of the input before the one kept).
-            match (prepared.normal.is_some(), prepared.missed_levels.is_empty()) {
+            match (prepared.normal.is_some(), prepared.missed.is_empty()) {
                 (true, true) => "normal",
                 (false, true) => "hand-over",
                 (true, false) => "earlier remeshes and normal",
@@ -207,14 +207,10 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     if let Some(rms) = prepared.remesh_rms {
         println!("{}", print::remesh_distance(rms, mesh.diagonal()));
     }
-    if prepared.input_distance.is_some() || !prepared.missed_levels.is_empty() {
+    if prepared.input_distance.is_some() || !prepared.missed.is_empty() {
         println!(
             "{}",
-            print::input_distance(
-                prepared.input_distance,
-                mesh.diagonal(),
-                &prepared.missed_levels
-            )
+            print::input_distance(prepared.input_distance, mesh.diagonal(), &prepared.missed)
         );
     }
     if let Some(d) = prepared.input_distance {

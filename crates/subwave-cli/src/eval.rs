@@ -128,10 +128,10 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         prepare(&mesh, &args.prep.options(quads), cb)
     })
     .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
-    if !args.json && (prep.input_distance.is_some() || !prep.missed_levels.is_empty()) {
+    if !args.json && (prep.input_distance.is_some() || !prep.missed.is_empty()) {
         println!(
             "{}",
-            print::input_distance(prep.input_distance, mesh.diagonal(), &prep.missed_levels)
+            print::input_distance(prep.input_distance, mesh.diagonal(), &prep.missed)
         );
     }
     if let (Some(n), false) = (&prep.normal, args.json) {
@@ -202,7 +202,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             "remesh_rms": prep.remesh_rms,
             "input_rms": prep.input_distance.map(|d| d.0),
             "input_max": prep.input_distance.map(|d| d.1),
-            "missed_levels": prep.missed_levels,
+            "missed": prep.missed,
             "levels": h.levels(),
             "base_faces": h.base.num_faces(),
             "coded_vertices": h.positions.len(),

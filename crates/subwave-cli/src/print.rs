@@ -273,7 +273,11 @@ pub fn remesh_distance(rms: f64, diagonal: f64) -> String {
 
 /// The line on the distance from the input to its remesh (`(rms, max)`, if it was measured)
 /// and on the default levels that missed part of the input before it (empty: none).
-pub fn input_distance(distance: Option<(f64, f64)>, diagonal: f64, missed: &[u32]) -> String {
+pub fn input_distance(
+    distance: Option<(f64, f64)>,
+    diagonal: f64,
+    missed: &[subwave::codec::prepare::Missed],
+) -> String {
     let mut s = String::from("remesh: ");
     if let Some((rms, max)) = distance {
         s += &format!(
@@ -283,14 +287,16 @@ pub fn input_distance(distance: Option<(f64, f64)>, diagonal: f64, missed: &[u32
         );
     }
     if !missed.is_empty() {
-        let list: Vec<String> = missed.iter().map(u32::to_string).collect();
+        let list: Vec<String> = missed
+            .iter()
+            .map(|m| format!("{} levels over {} base faces", m.levels, m.base_faces))
+            .collect();
         if distance.is_some() {
             s += "; ";
         }
         s += &format!(
-            "remeshed one level finer after {} {} missed part of the input (Hausdorff from the input over {:.1}% of the diagonal)",
-            if missed.len() == 1 { "level" } else { "levels" },
-            list.join(" and "),
+            "remeshed finer after {} missed part of the input (Hausdorff from the input over {:.1}% of the diagonal)",
+            list.join(", then "),
             100.0 * subwave::codec::prepare::MISS_FRACTION
         );
     }

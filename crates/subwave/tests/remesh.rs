@@ -612,13 +612,13 @@ fn closest_near_keeps_the_hinted_sheet_on_coincident_sheets() {
     assert!(proj.closest_near(below, &[1]).1 >= 2);
 }
 
-/// With default levels, a remesh that misses part of the input is redone one level finer:
-/// the cow's 3-level remesh over 200 base faces passes its tail between two samples
-/// (Hausdorff from the input 8.9% of the diagonal), the 4-level one still 3.3%, so the codec
-/// codes 5 levels; given levels are kept, and the miss is reported.
+/// With default levels, a remesh that misses part of the input is redone finer: the cow's
+/// 3-level remesh over 200 base faces passes its tail between two samples (Hausdorff from the
+/// input 8.9% of the diagonal), the one over 400 base faces still misses (3.5%), so the codec
+/// codes 3 levels over 800; given levels are kept, and the miss is reported.
 #[test]
 fn corpus_prepare_remeshes_finer_where_the_remesh_misses_the_input() {
-    use subwave::codec::prepare::{prepare, PrepareOptions, MISS_FRACTION};
+    use subwave::codec::prepare::{prepare, Missed, PrepareOptions, MISS_FRACTION};
     let Some(input) = corpus("cow.obj") else {
         return;
     };
@@ -628,14 +628,30 @@ fn corpus_prepare_remeshes_finer_where_the_remesh_misses_the_input() {
         ..PrepareOptions::default()
     };
     let p = prepare(&input, &opts, &mut |_, _| {}).unwrap();
-    assert_eq!(p.missed_levels, vec![3, 4]);
-    assert_eq!(p.hierarchy.levels(), 5);
+    let missed = |base_faces| Missed {
+        base_faces,
+        levels: 3,
+    };
+    assert_eq!(p.missed, vec![missed(200), missed(400)]);
+    assert_eq!(p.hierarchy.levels(), 3);
+    let base = p.hierarchy.base.num_faces();
+    assert!((700..=900).contains(&base), "{base} base faces");
+    let (_, max) = p.input_distance.expect("measured on a coarse remesh");
+    assert!(max <= MISS_FRACTION * input.diagonal(), "{max}");
+    // Given base faces are kept: one level finer instead.
+    let faces = PrepareOptions {
+        base_faces: Some(200),
+        ..opts
+    };
+    let p = prepare(&input, &faces, &mut |_, _| {}).unwrap();
+    assert_eq!(p.missed.first(), Some(&missed(200)));
+    assert!(p.hierarchy.levels() > 3);
     let given = PrepareOptions {
         levels: Some(3),
         ..opts
     };
     let p = prepare(&input, &given, &mut |_, _| {}).unwrap();
-    assert!(p.missed_levels.is_empty());
+    assert!(p.missed.is_empty());
     assert_eq!(p.hierarchy.levels(), 3);
     let (rms, max) = p.input_distance.expect("measured on a coarse remesh");
     assert!(max > MISS_FRACTION * input.diagonal(), "{max}");
