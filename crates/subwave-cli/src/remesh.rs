@@ -8,11 +8,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use subwave::distance::distance;
 
-/// Distance from the input to the remesh, as a fraction of the diagonal, beyond which
-/// `remesh` warns that it misses part of the input. Measured at 3 levels over 200 base
-/// faces: the cow's tail is cut off (8.9%; it takes 800 base faces to keep it, 0.99%) and
-/// cheburashka's ears are cut short (3.2%; 400 base faces: 1.9%); the other corpus meshes
-/// stay at 0.7–2.2%.
+/// Distance from the input to the remesh, as a fraction of the diagonal, beyond which the
+/// remesh misses part of the input: `remesh` then redoes a remesh over the default base
+/// faces over twice as many (up to `codec::prepare::MAX_DEFAULT_BASE_FACES`), or warns.
+/// Measured at 3 levels over 200 base faces: the cow's tail is cut off (8.9%; it takes 800
+/// base faces to keep it, 0.99%) and cheburashka's ears are cut short (3.2%; 400 base faces:
+/// 1.9%); the other corpus meshes stay at 0.7–2.2%.
 const MISS_WARNING: f64 = 0.03;
 use subwave::remesh::{remesh_with_progress, MethodChoice, RemeshOptions, Remeshed};
 
@@ -41,10 +42,12 @@ pub struct RemeshArgs {
     /// Subdivision levels over the base mesh.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(0..=8))]
     pub levels: u32,
-    /// Target number of base triangles.
-    #[arg(long, value_name = "N", default_value_t = 200,
+    /// Target number of base triangles [default: 200, raised to 400, then 800, where the
+    /// remesh over fewer misses part of the input by over 3% of the diagonal; a given number
+    /// is kept].
+    #[arg(long, value_name = "N",
           value_parser = clap::value_parser!(u64).range(1..=10_000_000))]
-    pub base_faces: u64,
+    pub base_faces: Option<u64>,
     /// Build a quad hierarchy (three quads per base triangle, then Catmull-Clark splits), for
     /// Bertram's B-spline wavelets.
     #[arg(long)]
@@ -83,7 +86,7 @@ pub struct RemeshArgs {
     pub samples: u64,
     /// Print JSON (keys method, base_faces, levels, vertices, faces, psnr, rms, max,
     /// max_relative, rms_relative, diagonal, min_angle, mean_angle, flipped, degenerate,
-    /// param_misses, time_ms, timings, normal, normal_ms, repair, warnings, output,
+    /// param_misses, time_ms, timings, normal, normal_ms, repair, missed, warnings, output,
     /// base_output).
     #[arg(long)]
     pub json: bool,
@@ -118,7 +121,9 @@ pub struct BenchRemeshArgs {
 fn options(args: &RemeshArgs) -> RemeshOptions {
     RemeshOptions {
         levels: args.levels,
-        base_faces: args.base_faces as usize,
+        base_faces: args
+            .base_faces
+            .map_or(subwave::codec::prepare::DEFAULT_BASE_FACES, |n| n as usize),
         quads: args.quads,
         sharp_angle: args.sharp_angle,
         repair: args.repair,
@@ -153,25 +158,67 @@ fn base_path(out: &Path) -> PathBuf {
 /// Runs `subwave remesh`.
 pub fn run(args: &RemeshArgs) -> Result<()> {
     let mesh = subwave::io::read_mesh(&args.mesh, None)?;
-    let opts = options(args);
-    let mut r = run_with_bar(&mesh, &opts, false)
-        .with_context(|| format!("remeshing {}", args.mesh.display()))?;
-    let resampled = if args.normal || args.fit {
-        let t = std::time::Instant::now();
-        let stats = subwave::remesh::normal::resample_remesh(
-            &mut r,
-            &mesh,
-            args.normal,
-            args.fit,
-            &Default::default(),
-        )
-        .with_context(|| format!("re-sampling the remesh of {}", args.mesh.display()))?;
-        Some((stats, t.elapsed().as_secs_f64() * 1e3))
-    } else {
-        None
+    let mut opts = options(args);
+    // With the default base faces, a remesh that misses part of the input is redone over
+    // twice the base faces, up to `MAX_DEFAULT_BASE_FACES` (as `encode` does).
+    let mut missed = Vec::new();
+    let (r, resampled, d) = loop {
+        let mut r = run_with_bar(&mesh, &opts, false)
+            .with_context(|| format!("remeshing {}", args.mesh.display()))?;
+        let resampled = if args.normal || args.fit {
+            let t = std::time::Instant::now();
+            let stats = subwave::remesh::normal::resample_remesh(
+                &mut r,
+                &mesh,
+                args.normal,
+                args.fit,
+                &Default::default(),
+            )
+            .with_context(|| format!("re-sampling the remesh of {}", args.mesh.display()))?;
+            Some((stats, t.elapsed().as_secs_f64() * 1e3))
+        } else {
+            None
+        };
+        let d = if args.samples > 0 {
+            Some(distance(&mesh, &r.mesh, args.samples as usize)?)
+        } else {
+            None
+        };
+        let misses = d.is_some_and(|d| d.ab.max > MISS_WARNING * d.diagonal);
+        if misses
+            && args.base_faces.is_none()
+            && opts.base_faces < subwave::codec::prepare::MAX_DEFAULT_BASE_FACES
+        {
+            missed.push(subwave::codec::prepare::Missed {
+                base_faces: opts.base_faces,
+                levels: opts.levels,
+            });
+            opts.base_faces =
+                (2 * opts.base_faces).min(subwave::codec::prepare::MAX_DEFAULT_BASE_FACES);
+            continue;
+        }
+        break (r, resampled, d);
     };
     // Printed once, by the log (stderr, shown at its default level); JSON also lists them.
-    for w in &r.warnings {
+    let mut warnings = r.warnings.clone();
+    if !missed.is_empty() {
+        let list: Vec<String> = missed.iter().map(|m| m.base_faces.to_string()).collect();
+        warnings.push(format!(
+            "remeshed over {} base faces: over {} the remesh missed part of the input (by over {:.0}% of the diagonal)",
+            opts.base_faces,
+            list.join(" and "),
+            100.0 * MISS_WARNING
+        ));
+    }
+    if let Some(d) = d.filter(|d| d.ab.max > MISS_WARNING * d.diagonal) {
+        warnings.push(format!(
+            "the remesh misses part of the input: the input's point {} is {:.2}% of the diagonal from it (a thin part the base mesh of {} faces cuts off?); more --base-faces keep such parts",
+            crate::distance::point(d.ab.farthest),
+            100.0 * d.ab.max / d.diagonal,
+            r.base.num_faces()
+        ));
+    }
+    for w in &warnings {
         tracing::warn!("{w}");
     }
     let mut base_output = None;
@@ -183,22 +230,6 @@ pub fn run(args: &RemeshArgs) -> Result<()> {
     } else if let Some(bp) = &args.base_output {
         subwave::io::write_mesh(&r.base, bp, None)?;
         base_output = Some(bp.clone());
-    }
-    let d = if args.samples > 0 {
-        Some(distance(&mesh, &r.mesh, args.samples as usize)?)
-    } else {
-        None
-    };
-    let mut warnings = r.warnings.clone();
-    if let Some(d) = d.filter(|d| d.ab.max > MISS_WARNING * d.diagonal) {
-        let w = format!(
-            "the remesh misses part of the input: the input's point {} is {:.2}% of the diagonal from it (a thin part the base mesh of {} faces cuts off?); more --base-faces keep such parts",
-            crate::distance::point(d.ab.farthest),
-            100.0 * d.ab.max / d.diagonal,
-            r.base.num_faces()
-        );
-        tracing::warn!("{w}");
-        warnings.push(w);
     }
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
@@ -228,6 +259,7 @@ pub fn run(args: &RemeshArgs) -> Result<()> {
             "normal": resampled.as_ref().map(|x| &x.0),
             "normal_ms": resampled.as_ref().map(|x| x.1),
             "repair": r.repair,
+            "missed": missed,
             "warnings": warnings,
             "output": args.output.as_ref().map(|p| p.display().to_string()),
             "base_output": base_output.as_ref().map(|p| p.display().to_string()),
