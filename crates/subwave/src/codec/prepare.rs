@@ -58,8 +58,8 @@ pub const MISS_FRACTION: f64 = 0.025;
 /// base faces it misses its tail at 3 and 4 levels, and 5 levels (102,402 vertices) code to
 /// 82 KB in 8.8 s, topping out at 70.3 dB, at 1.48× Draco's bytes at 66.8 dB, 2.27× at
 /// 68.8, 3.60× at 70.0; over 400 base faces 3 levels still miss (3.5%), over 800 they do not
-/// (0.99%): 25,602 vertices, 34 KB in 2.0 s, topping out at 75.8 dB, at 1.24× Draco at
-/// 66.0 dB, 1.52× at 68.7, 1.92× at 70.8.
+/// (0.99%): 25,602 vertices, 34 KB (2.9 s with the two remeshes that missed), topping out
+/// at 75.8 dB, at 1.24× Draco at 66.0 dB, 1.52× at 68.7, 1.92× at 70.8.
 pub const MAX_DEFAULT_BASE_FACES: usize = 4 * DEFAULT_BASE_FACES;
 
 /// A remesh that missed part of the input ([`MISS_FRACTION`]) before the one [`prepare`]
