@@ -272,7 +272,7 @@ pub fn remesh_distance(rms: f64, diagonal: f64) -> String {
 }
 
 /// The line on the distance from the input to its remesh (`(rms, max)`, if it was measured)
-/// and on the default levels that missed part of the input before it (empty: none).
+/// and on the remeshes that missed part of the input before it (empty: none).
 pub fn input_distance(
     distance: Option<(f64, f64)>,
     diagonal: f64,

@@ -185,16 +185,14 @@ pub fn run(args: &RemeshArgs) -> Result<()> {
             None
         };
         let misses = d.is_some_and(|d| d.ab.max > MISS_WARNING * d.diagonal);
-        if misses
-            && args.base_faces.is_none()
-            && opts.base_faces < subwave::codec::prepare::MAX_DEFAULT_BASE_FACES
-        {
+        let finer = subwave::codec::prepare::finer_base(opts.base_faces)
+            .filter(|_| misses && args.base_faces.is_none());
+        if let Some(b) = finer {
             missed.push(subwave::codec::prepare::Missed {
                 base_faces: opts.base_faces,
                 levels: opts.levels,
             });
-            opts.base_faces =
-                (2 * opts.base_faces).min(subwave::codec::prepare::MAX_DEFAULT_BASE_FACES);
+            opts.base_faces = b;
             continue;
         }
         break (r, resampled, d);

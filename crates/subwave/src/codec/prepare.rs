@@ -62,6 +62,13 @@ pub const MISS_FRACTION: f64 = 0.025;
 /// at 75.8 dB, at 1.24× Draco at 66.0 dB, 1.52× at 68.7, 1.92× at 70.8.
 pub const MAX_DEFAULT_BASE_FACES: usize = 4 * DEFAULT_BASE_FACES;
 
+/// The base faces to try after a remesh over `base_faces` (default ones) missed part of the
+/// input: twice as many, up to [`MAX_DEFAULT_BASE_FACES`]; `None` once there (`subwave
+/// remesh` follows the same steps).
+pub fn finer_base(base_faces: usize) -> Option<usize> {
+    (base_faces < MAX_DEFAULT_BASE_FACES).then(|| (2 * base_faces).min(MAX_DEFAULT_BASE_FACES))
+}
+
 /// A remesh that missed part of the input ([`MISS_FRACTION`]) before the one [`prepare`]
 /// kept (JSON keys `base_faces`, `levels`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -345,8 +352,8 @@ pub fn prepare(
                 base_faces: ro.base_faces,
                 levels: ro.levels,
             };
-            if opts.base_faces.is_none() && ro.base_faces < MAX_DEFAULT_BASE_FACES {
-                ro.base_faces = (2 * ro.base_faces).min(MAX_DEFAULT_BASE_FACES);
+            if let Some(b) = finer_base(ro.base_faces).filter(|_| opts.base_faces.is_none()) {
+                ro.base_faces = b;
             } else if ro.levels < MAX_DEFAULT_LEVELS {
                 ro.levels += 1;
             }
