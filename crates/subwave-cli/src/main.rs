@@ -251,8 +251,10 @@ pub struct CompressBaseArgs {
           value_parser = clap::value_parser!(u32).range(8..=30))]
     pub bits: u32,
     /// Code a mesh that is not a consistently oriented 2-manifold after repairing it as
-    /// `remesh --repair` does (a manifold mesh is coded as it is): non-manifold vertices and edges split (the decoded mesh has
-    /// the split vertices as separate vertices at the same positions), orientations made
+    /// `remesh --repair` does (a manifold mesh is coded as it is): duplicated seams welded
+    /// (boundary edges lying exactly on other boundary edges), non-manifold vertices and
+    /// edges split (the decoded mesh has the split vertices as separate vertices at the same
+    /// positions), orientations made
     /// consistent, polygons fanned into triangles, degenerate faces and unreferenced vertices
     /// dropped; vertex attributes and tags are not kept.
     #[arg(long)]

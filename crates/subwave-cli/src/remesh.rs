@@ -55,7 +55,10 @@ pub struct RemeshArgs {
     /// Keep edges sharper than this dihedral angle (degrees) as creases on base edges.
     #[arg(long, value_name = "DEG", value_parser = crate::parse_angle)]
     pub sharp_angle: Option<f64>,
-    /// Cut non-manifold edges and split non-manifold vertices instead of failing.
+    /// Repair the input instead of failing: weld duplicated seams (boundary edges lying
+    /// exactly on other boundary edges, as in a model tessellated patch by patch), then cut
+    /// non-manifold edges, split non-manifold vertices and orient each component
+    /// consistently.
     #[arg(long)]
     pub repair: bool,
     /// The method.
@@ -107,7 +110,8 @@ pub struct BenchRemeshArgs {
     /// Feature angle (degrees).
     #[arg(long, value_name = "DEG", value_parser = crate::parse_angle)]
     pub sharp_angle: Option<f64>,
-    /// Repair non-manifold input.
+    /// Repair the input as `subwave remesh --repair` does (duplicated seams welded,
+    /// non-manifold edges cut and vertices split).
     #[arg(long)]
     pub repair: bool,
     /// Runs (the median is reported).

@@ -9,6 +9,13 @@
 //! as Maret §2.3.1's orientation test requires); every vertex is then split into one copy per
 //! fan of the faces glued around it. Non-manifold edges thus become boundary edges of each
 //! sheet, pinched vertices become several vertices, and non-orientable gluings are cut.
+//!
+//! Before that, the repair closes *duplicated seams*: a boundary edge whose two ends lie
+//! exactly where the ends of another boundary edge lie (a model tessellated patch by patch,
+//! as Newell's teapot, stores each patch's rim apart) is glued to it by welding the
+//! coincident ends ([`weld_seams`]). Only edges are matched, so parts that merely touch at a
+//! vertex stay apart; a weld that makes an edge non-manifold (three coincident rims) is cut
+//! again by the repair above.
 
 use std::collections::VecDeque;
 
@@ -37,6 +44,11 @@ pub struct RepairReport {
     pub flipped_faces: usize,
     /// Vertices added by splitting.
     pub added_vertices: usize,
+    /// Vertices welded into a coincident one to close duplicated seams (only with repair).
+    pub welded_vertices: usize,
+    /// Without repair: vertices that the repair would weld (the ends of boundary edges that
+    /// coincide with other boundary edges), left apart; 0 with repair.
+    pub seam_vertices: usize,
 }
 
 impl RepairReport {
@@ -46,6 +58,11 @@ impl RepairReport {
     /// lists them apart: they are removed with or without repair).
     pub fn repair_summary(&self) -> Option<String> {
         let s = counted(&[
+            (
+                self.welded_vertices,
+                "welded",
+                "vertex(es) into coincident ones to close duplicated seams",
+            ),
             (
                 self.non_manifold_edges,
                 "cut",
@@ -73,8 +90,9 @@ impl RepairReport {
     }
 
     /// One warning per kind of change to the input (the remesher's report): degenerate and
-    /// duplicate faces removed, vertices on no kept face dropped, then the manifold repair
-    /// ([`RepairReport::repair_summary`]).
+    /// duplicate faces removed, vertices on no kept face dropped, then the repair
+    /// ([`RepairReport::repair_summary`]), or without repair the duplicated seams it would
+    /// have closed.
     pub fn warnings(&self) -> Vec<String> {
         let mut w = counted(&[
             (
@@ -97,6 +115,13 @@ impl RepairReport {
             self.repair_summary()
                 .map(|s| format!("repaired the input into a manifold: {s}")),
         );
+        if self.seam_vertices > 0 {
+            w.push(format!(
+                "{} vertex(es) end boundary edges that coincide with other boundary edges \
+                 (duplicated seams, kept open as boundaries): --repair welds them",
+                self.seam_vertices
+            ));
+        }
         w
     }
 }
@@ -113,8 +138,8 @@ fn counted(entries: &[(usize, &str, &str)]) -> Vec<String> {
 /// The triangles of `mesh` ready for remeshing: polygons fanned (a quad along a diagonal
 /// that is not already an edge), degenerate triangles (a repeated vertex, area below
 /// `1e-14 · diagonal²`, or the vertex set of an earlier triangle) and unreferenced vertices
-/// removed and, if `repair`, non-manifold edges and vertices cut (see the module
-/// documentation).
+/// removed and, if `repair`, duplicated seams welded and non-manifold edges and vertices cut
+/// (see the module documentation).
 ///
 /// Returns the positions, the triangles and the report.
 ///
@@ -150,6 +175,25 @@ pub fn prepare(mesh: &Mesh, repair: bool) -> Result<(Vec<DVec3>, Vec<[u32; 3]>, 
             kept.push(t);
         }
     }
+    // Duplicated seams: welded with repair (faces that then repeat a kept one are dropped as
+    // duplicates), reported without.
+    let (root, seam_vertices) = weld_seams(&mesh.positions, &kept);
+    if seam_vertices > 0 && repair {
+        report.welded_vertices = seam_vertices;
+        seen.clear();
+        kept.retain_mut(|t| {
+            *t = t.map(|i| root[i as usize]);
+            let mut sorted = *t;
+            sorted.sort_unstable();
+            let fresh = seen.insert(sorted);
+            if !fresh {
+                report.duplicate_faces += 1;
+            }
+            fresh
+        });
+    } else {
+        report.seam_vertices = seam_vertices;
+    }
     // Drop unreferenced vertices.
     let mut map = vec![u32::MAX; mesh.positions.len()];
     let mut positions = Vec::new();
@@ -164,7 +208,8 @@ pub fn prepare(mesh: &Mesh, repair: bool) -> Result<(Vec<DVec3>, Vec<[u32; 3]>, 
             *i = map[*i as usize];
         }
     }
-    report.unreferenced_vertices = mesh.positions.len() - positions.len();
+    // Welded vertices are on no face now; they are counted apart.
+    report.unreferenced_vertices = mesh.positions.len() - positions.len() - report.welded_vertices;
     let m = Mesh::from_triangles(positions, &kept);
     let topo = Topology::build(&m);
     let nm_edges = topo.non_manifold_edges();
@@ -191,6 +236,74 @@ pub fn prepare(mesh: &Mesh, repair: bool) -> Result<(Vec<DVec3>, Vec<[u32; 3]>, 
     report.flipped_faces = flipped;
     report.added_vertices = added;
     Ok((positions, tris, report))
+}
+
+/// Duplicated seams of the triangles `tris` over `positions`: for every vertex, the vertex
+/// it is welded into (itself if none), and the number of vertices welded into another.
+///
+/// Preconditions: the indices of `tris` are below `positions.len()`, and no triangle has
+/// two vertices at the same place (degenerate triangles removed first): a welded triangle
+/// then keeps three distinct vertices.
+///
+/// A boundary edge (on one triangle) is a seam edge when another boundary edge has its ends at
+/// exactly the same two positions (bit for bit, `-0.0` as `0.0`, either direction); the
+/// coincident ends of such edges are welded into the smallest index among them. Vertices
+/// that coincide without a coincident edge (parts touching at a point) are left apart.
+pub fn weld_seams(positions: &[DVec3], tris: &[[u32; 3]]) -> (Vec<u32>, usize) {
+    use std::collections::HashMap;
+    let n = positions.len();
+    let key = |v: u32| {
+        positions[v as usize]
+            .to_array()
+            .map(|x| (x + 0.0).to_bits())
+    };
+    // Undirected edges and the number of triangles on each.
+    let mut edges: HashMap<(u32, u32), u32> = HashMap::new();
+    for fv in tris {
+        for i in 0..3 {
+            let (a, b) = (fv[i], fv[(i + 1) % 3]);
+            *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    // Boundary edges grouped by their ends' positions (ordered so either direction matches).
+    // A place: the bits of a position.
+    type Place = [u64; 3];
+    let mut by_place: HashMap<(Place, Place), Vec<(u32, u32)>> = HashMap::new();
+    for (&(a, b), &count) in &edges {
+        if count != 1 {
+            continue;
+        }
+        let (ka, kb) = (key(a), key(b));
+        let (p, q) = if ka <= kb {
+            ((a, b), (ka, kb))
+        } else {
+            ((b, a), (kb, ka))
+        };
+        by_place.entry(q).or_default().push(p);
+    }
+    let mut uf = UnionFind::new(n);
+    for group in by_place.values() {
+        if let Some((&(a0, b0), rest)) = group.split_first() {
+            for &(a, b) in rest {
+                uf.union(a0, a);
+                uf.union(b0, b);
+            }
+        }
+    }
+    let mut smallest = vec![u32::MAX; n];
+    for v in 0..n as u32 {
+        let r = uf.find(v) as usize;
+        smallest[r] = smallest[r].min(v);
+    }
+    let root: Vec<u32> = (0..n as u32)
+        .map(|v| smallest[uf.find(v) as usize])
+        .collect();
+    let welded = root
+        .iter()
+        .enumerate()
+        .filter(|&(v, &r)| r as usize != v)
+        .count();
+    (root, welded)
 }
 
 /// The triangles of `mesh`'s faces: polygons fanned from their first corner, except that a
@@ -401,6 +514,69 @@ mod tests {
                 "dropped 1 vertex(es) that no kept face uses (a remesh samples the surface only)",
             ]
         );
+    }
+
+    fn boundary_edges(topo: &Topology) -> usize {
+        (0..topo.num_edges())
+            .filter(|&e| topo.is_boundary_edge(e))
+            .count()
+    }
+
+    /// Two squares stored apart along a shared side (a duplicated seam) are welded into one
+    /// sheet with repair and reported without; parts touching at one point stay apart.
+    #[test]
+    fn duplicated_seams_are_welded() {
+        let p = |x: f64, y: f64| DVec3::new(x, y, 0.0);
+        // Left square 0 1 2 3, right square 4 5 6 7 whose left side (4, 7) lies on (1, 2);
+        // the right square's corner 6 also touches a third triangle's corner 8 at a point.
+        let positions = vec![
+            p(0.0, 0.0),
+            p(1.0, 0.0),
+            p(1.0, 1.0),
+            p(0.0, 1.0),
+            p(1.0, 0.0),
+            p(2.0, 0.0),
+            p(2.0, 1.0),
+            p(1.0, 1.0),
+            p(2.0, 1.0),
+            p(3.0, 1.0),
+            p(3.0, 2.0),
+        ];
+        let faces = vec![
+            vec![0, 1, 2],
+            vec![0, 2, 3],
+            vec![4, 5, 6],
+            vec![4, 6, 7],
+            vec![8, 9, 10],
+        ];
+        let m = Mesh::from_faces(positions, faces);
+        let (pos, tris, r) = prepare(&m, false).unwrap();
+        assert_eq!((pos.len(), r.seam_vertices, r.welded_vertices), (11, 2, 0));
+        assert!(
+            r.warnings()
+                .iter()
+                .any(|w| w.starts_with("2 vertex(es) end boundary edges")
+                    && w.ends_with("--repair welds them")),
+            "{:?}",
+            r.warnings()
+        );
+        let topo = Topology::build(&Mesh::from_triangles(pos, &tris));
+        assert_eq!(boundary_edges(&topo), 11);
+        let (pos, tris, r) = prepare(&m, true).unwrap();
+        assert_eq!((pos.len(), r.seam_vertices, r.welded_vertices), (9, 0, 2));
+        assert_eq!(r.unreferenced_vertices, 0);
+        assert_eq!(r.added_vertices, 0, "the touching corner is not welded");
+        let topo = Topology::build(&Mesh::from_triangles(pos, &tris));
+        assert!(require_manifold(&topo).is_ok());
+        assert_eq!(boundary_edges(&topo), 9, "the seam is an interior edge");
+        assert_eq!(
+            r.repair_summary().as_deref(),
+            Some("welded 2 vertex(es) into coincident ones to close duplicated seams")
+        );
+        // -0.0 and 0.0 are the same place.
+        let mut m2 = m.clone();
+        m2.positions[4].y = -0.0;
+        assert_eq!(weld_seams(&m2.positions, &m2.triangulate().0).1, 2);
     }
 
     /// The repair's summary names what it changed.
