@@ -128,6 +128,94 @@ fn non_manifold_input_fails_with_the_elements_then_repairs() {
     assert!(err.contains(repaired), "{err}");
 }
 
+/// A sphere whose lower half is stored apart (its own copies of the vertices of the seam):
+/// kept open with a warning, welded back into one sphere with `--repair`.
+#[test]
+fn duplicated_seams_warn_then_weld() {
+    let sphere = generate::icosphere(2);
+    let mut m = sphere.clone();
+    let lower: Vec<bool> = sphere
+        .faces()
+        .map(|fv| {
+            fv.iter()
+                .map(|&v| sphere.positions[v as usize].z)
+                .sum::<f64>()
+                < 0.0
+        })
+        .collect();
+    let upper_uses: std::collections::HashSet<u32> = sphere
+        .faces()
+        .zip(&lower)
+        .filter(|(_, &low)| !low)
+        .flat_map(|(fv, _)| fv.to_vec())
+        .collect();
+    let mut copy = std::collections::HashMap::new();
+    for (f, &low) in lower.iter().enumerate() {
+        if !low {
+            continue;
+        }
+        let range = m.face_offsets[f] as usize..m.face_offsets[f + 1] as usize;
+        for i in range {
+            let v = m.face_indices[i];
+            if upper_uses.contains(&v) {
+                let c = *copy.entry(v).or_insert_with(|| {
+                    m.positions.push(sphere.positions[v as usize]);
+                    (m.positions.len() - 1) as u32
+                });
+                m.face_indices[i] = c;
+            }
+        }
+    }
+    let seam = copy.len();
+    assert!(seam >= 8, "{seam}");
+    let dir = tempfile::tempdir().unwrap();
+    let input = write(dir.path(), "halves.obj", &m);
+    let args = |repair: bool| {
+        let mut a = vec![
+            "remesh",
+            input.as_str(),
+            "--levels",
+            "1",
+            "--base-faces",
+            "40",
+            "--samples",
+            "0",
+            "--json",
+        ];
+        if repair {
+            a.push("--repair");
+        }
+        run(&a)
+    };
+    let o = args(false);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["repair"]["seam_vertices"], seam, "{v}");
+    let open = format!("{seam} vertex(es) end boundary edges that coincide");
+    assert!(
+        v["warnings"].as_array().unwrap().iter().any(|w| w
+            .as_str()
+            .is_some_and(|w| w.starts_with(&open) && w.ends_with("--repair welds them"))),
+        "{v}"
+    );
+    let o = args(true);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["repair"]["welded_vertices"], seam, "{v}");
+    assert_eq!(v["repair"]["seam_vertices"], 0, "{v}");
+    let welded = format!(
+        "repaired the input into a manifold: welded {seam} vertex(es) into coincident ones to close duplicated seams"
+    );
+    assert!(
+        v["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str() == Some(welded.as_str())),
+        "{v}"
+    );
+}
+
 #[test]
 fn bench_remesh_reports_stages() {
     let dir = tempfile::tempdir().unwrap();
