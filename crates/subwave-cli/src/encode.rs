@@ -82,7 +82,8 @@ pub enum ComponentsArg {
 #[derive(Debug, clap::Args)]
 pub struct PrepareArgs {
     /// Subdivision levels: of the remesh of an irregular input (default: the fewest whose
-    /// finest level has twice the input's triangles), or required of a semi-regular input
+    /// finest level has twice the input's triangles, raised where that remesh stays below
+    /// 80 dB from the input, up to 2^18 finest faces), or required of a semi-regular input
     /// (default: as many as it has).
     #[arg(long, value_name = "L", value_parser = clap::value_parser!(u32).range(1..=12))]
     pub levels: Option<u32>,
@@ -177,7 +178,10 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
             t.relax_ms,
             // What follows the remesh: the normal re-sampling, if it ran (and the remeshes
             // that missed part of the input before the one kept).
-            match (prepared.normal.is_some(), prepared.missed.is_empty()) {
+            match (
+                prepared.normal.is_some(),
+                prepared.missed.is_empty() && prepared.raised.is_none(),
+            ) {
                 (true, true) => "normal",
                 (false, true) => "hand-over",
                 (true, false) => "earlier remeshes and normal",
@@ -207,10 +211,16 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     if let Some(rms) = prepared.remesh_rms {
         println!("{}", print::remesh_distance(rms, mesh.diagonal()));
     }
-    if prepared.input_distance.is_some() || !prepared.missed.is_empty() {
+    if prepared.input_distance.is_some() || !prepared.missed.is_empty() || prepared.raised.is_some()
+    {
         println!(
             "{}",
-            print::input_distance(prepared.input_distance, mesh.diagonal(), &prepared.missed)
+            print::input_distance(
+                prepared.input_distance,
+                mesh.diagonal(),
+                &prepared.missed,
+                prepared.raised.as_ref(),
+            )
         );
     }
     if let Some(d) = prepared.input_distance {

@@ -128,10 +128,17 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         prepare(&mesh, &args.prep.options(quads), cb)
     })
     .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
-    if !args.json && (prep.input_distance.is_some() || !prep.missed.is_empty()) {
+    if !args.json
+        && (prep.input_distance.is_some() || !prep.missed.is_empty() || prep.raised.is_some())
+    {
         println!(
             "{}",
-            print::input_distance(prep.input_distance, mesh.diagonal(), &prep.missed)
+            print::input_distance(
+                prep.input_distance,
+                mesh.diagonal(),
+                &prep.missed,
+                prep.raised.as_ref(),
+            )
         );
     }
     if let (Some(n), false) = (&prep.normal, args.json) {
@@ -203,6 +210,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             "input_rms": prep.input_distance.map(|d| d.0),
             "input_max": prep.input_distance.map(|d| d.1),
             "missed": prep.missed,
+            "raised": prep.raised,
             "levels": h.levels(),
             "base_faces": h.base.num_faces(),
             "coded_vertices": h.positions.len(),

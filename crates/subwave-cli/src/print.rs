@@ -271,12 +271,14 @@ pub fn remesh_distance(rms: f64, diagonal: f64) -> String {
     )
 }
 
-/// The line on the distance from the input to its remesh (`(rms, max)`, if it was measured)
-/// and on the remeshes that missed part of the input before it (empty: none).
+/// The line on the distance from the input to its remesh (`(rms, max)`, if it was measured),
+/// on the remeshes that missed part of the input before it (empty: none) and on the one
+/// redone with more levels because it topped out below the ceiling (`raised`).
 pub fn input_distance(
     distance: Option<(f64, f64)>,
     diagonal: f64,
     missed: &[subwave::codec::prepare::Missed],
+    raised: Option<&subwave::codec::prepare::Raised>,
 ) -> String {
     let mut s = String::from("remesh: ");
     if let Some((rms, max)) = distance {
@@ -298,6 +300,18 @@ pub fn input_distance(
             "remeshed finer after {} missed part of the input (Hausdorff from the input over {:.1}% of the diagonal)",
             list.join(", then "),
             100.0 * subwave::codec::prepare::MISS_FRACTION
+        );
+    }
+    if let Some(r) = raised {
+        if distance.is_some() || !missed.is_empty() {
+            s += "; ";
+        }
+        s += &format!(
+            "levels raised: the remesh at {} levels over {} base faces topped out at {:.1} dB, below {:.0} dB",
+            r.levels,
+            r.base_faces,
+            r.psnr,
+            subwave::codec::prepare::CEILING_DB
         );
     }
     s

@@ -59,7 +59,8 @@ pub const MISS_FRACTION: f64 = 0.025;
 /// 82 KB in 8.8 s, topping out at 70.3 dB, at 1.48× Draco's bytes at 66.8 dB, 2.27× at
 /// 68.8, 3.60× at 70.0; over 400 base faces 3 levels still miss (3.5%), over 800 they do not
 /// (0.99%): 25,602 vertices, 34 KB (2.9 s with the two remeshes that missed), topping out
-/// at 75.8 dB, at 1.24× Draco at 66.0 dB, 1.52× at 68.7, 1.92× at 70.8.
+/// at 75.8 dB, at 1.24× Draco at 66.0 dB, 1.52× at 68.7, 1.92× at 70.8 (since
+/// [`CEILING_DB`], raised to 4 levels over 800: 102,402 vertices, topping out at 83.3 dB).
 pub const MAX_DEFAULT_BASE_FACES: usize = 4 * DEFAULT_BASE_FACES;
 
 /// The base faces to try after a remesh over `base_faces` (default ones) missed part of the
@@ -67,6 +68,63 @@ pub const MAX_DEFAULT_BASE_FACES: usize = 4 * DEFAULT_BASE_FACES;
 /// remesh` follows the same steps).
 pub fn finer_base(base_faces: usize) -> Option<usize> {
     (base_faces < MAX_DEFAULT_BASE_FACES).then(|| (2 * base_faces).min(MAX_DEFAULT_BASE_FACES))
+}
+
+/// With default levels, a remesh that does not miss the input but stays farther from it
+/// than this PSNR (dB; the larger of the one-sided RMS distances against the input's
+/// diagonal, which is where the coded stream tops out) is redone with more levels: about
+/// one per [`GAIN_PER_LEVEL_DB`] below it, while the finest level keeps at most
+/// [`MAX_RAISED_FACES`] faces.
+///
+/// The default levels ([`default_levels`]) follow the input's size, but where they top out
+/// depends on its shape, and one level more costs few bytes below that top and many fewer
+/// near and above it. Measured 2026-12-05 (`subwave eval`, default options otherwise;
+/// bytes at equal PSNR with one level more / at the default levels): spot 3 → 4 levels
+/// 1.10 at 56.6 dB, 1.04 at 69.1, 0.91 at 69.4, 0.67 at 71.4, top 71.5 → 80.5 dB; teapot
+/// 3 → 4 1.05 at 54.3, 0.96 at 62.0, 0.73 at 65.3, top 66.2 → 75.7 (4 → 5: 1.04 at 56.4,
+/// 0.87 at 73.0, top 86.7); cheburashka 4 → 5 1.06 at 53.8, 0.91 at 62.6, 0.71 at 68.3, top
+/// 69.9 → 78.3; rocker-arm 4 → 5 1.03–1.06 up to 75.2, 0.82 at 79.0, top 79.3 → 86.6;
+/// suzanne 2 → 3 → 4 tops 54.2, 59.7, 66.8; fandisk 4 → 5 1.03–1.10 up to 87.9 dB, where
+/// its default already tops out at 91.4 (so it keeps 4), woody 116 dB at 2 levels.
+pub const CEILING_DB: f64 = 80.0;
+
+/// The PSNR one more level adds to a remesh, as [`CEILING_DB`] assumes it (measured:
+/// 7.0–11.0 dB over the corpus, mostly 8–9; suzanne 5.4 and 7.2).
+pub const GAIN_PER_LEVEL_DB: f64 = 9.0;
+
+/// Most faces of the finest level that [`CEILING_DB`] raises a remesh to: 2^18, five levels
+/// over 256 base faces (the bunny's default is five levels over 200).
+pub const MAX_RAISED_FACES: usize = 1 << 18;
+
+/// A remesh that [`prepare`] redid with more levels because it topped out below
+/// [`CEILING_DB`] (JSON keys `base_faces`, `levels`, `psnr`).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Raised {
+    /// Its base faces.
+    pub base_faces: usize,
+    /// Its levels.
+    pub levels: u32,
+    /// Its PSNR against the input (dB).
+    pub psnr: f64,
+}
+
+/// The levels [`prepare`] raises a remesh of `levels` levels over `base_faces` base faces
+/// to when it is `psnr` dB from the input ([`CEILING_DB`]); `levels` itself if none.
+pub fn raised_levels(levels: u32, base_faces: usize, psnr: f64) -> u32 {
+    if psnr.is_nan() || psnr >= CEILING_DB {
+        return levels;
+    }
+    let wanted = levels.saturating_add(((CEILING_DB - psnr) / GAIN_PER_LEVEL_DB).ceil() as u32);
+    let mut raised = levels;
+    while raised < wanted.min(MAX_DEFAULT_LEVELS)
+        && base_faces
+            .max(1)
+            .saturating_mul(1usize << (2 * (raised + 1)).min(62))
+            <= MAX_RAISED_FACES
+    {
+        raised += 1;
+    }
+    raised
 }
 
 /// A remesh that missed part of the input ([`MISS_FRACTION`]) before the one [`prepare`]
@@ -218,6 +276,9 @@ pub struct Prepared {
     /// The remeshes that missed part of the input before the one kept (empty unless the
     /// levels were the default, see [`MISS_FRACTION`]).
     pub missed: Vec<Missed>,
+    /// The remesh redone with more levels because it topped out below [`CEILING_DB`], if
+    /// any (only with default levels).
+    pub raised: Option<Raised>,
     /// Milliseconds spent measuring [`Prepared::remesh_rms`] and
     /// [`Prepared::input_distance`].
     pub distance_ms: f64,
@@ -276,6 +337,7 @@ pub fn prepare(
                 remesh_rms: None,
                 input_distance: None,
                 missed: Vec::new(),
+                raised: None,
                 distance_ms: 0.0,
             });
         }
@@ -321,6 +383,7 @@ pub fn prepare(
     let (input_bvh, input_samples) = (input_bvh?, input_samples?);
     let diagonal = mesh.diagonal();
     let mut missed = Vec::new();
+    let mut raised = None;
     let mut distance_ms = 0.0;
     loop {
         let (mut normal, mut fit) = (None, None);
@@ -370,6 +433,30 @@ pub fn prepare(
                 continue;
             }
         }
+        if opts.levels.is_none() && raised.is_none() {
+            // Where it tops out: the larger one-sided RMS (the input's side is measured on
+            // remeshes up to MISS_CHECK_FACES, which those below the ceiling are).
+            let rms = input_distance.map_or(remesh_rms, |d| d.0.max(remesh_rms));
+            let psnr = crate::distance::psnr(diagonal, rms);
+            let base_faces = r.hierarchy.base.num_faces();
+            let levels = raised_levels(ro.levels, base_faces, psnr);
+            if levels > ro.levels {
+                tracing::debug!(
+                    psnr,
+                    from = ro.levels,
+                    to = levels,
+                    "the remesh tops out below the ceiling: remeshing with more levels"
+                );
+                raised = Some(Raised {
+                    base_faces,
+                    levels: ro.levels,
+                    psnr,
+                });
+                ro.levels = levels;
+                r = remesh_with_progress(mesh, &ro, progress)?;
+                continue;
+            }
+        }
         return Ok(Prepared {
             hierarchy: r.hierarchy.clone(),
             remeshed: Some(r),
@@ -380,6 +467,7 @@ pub fn prepare(
             remesh_rms: Some(remesh_rms),
             input_distance,
             missed,
+            raised,
             distance_ms,
         });
     }
@@ -594,6 +682,22 @@ mod tests {
         assert_eq!(default_levels(10, 200), 1);
         assert_eq!(default_levels(100_000_000, 200), MAX_DEFAULT_LEVELS);
         assert_eq!(default_levels(1000, 0), 6.min(MAX_DEFAULT_LEVELS));
+    }
+
+    #[test]
+    fn raised_levels_follow_the_ceiling() {
+        // At or above the ceiling: kept.
+        assert_eq!(raised_levels(4, 200, 91.4), 4);
+        assert_eq!(raised_levels(4, 200, CEILING_DB), 4);
+        // One level per GAIN_PER_LEVEL_DB below it (spot 71.5 dB: one; teapot 66.2: two).
+        assert_eq!(raised_levels(3, 200, 71.5), 4);
+        assert_eq!(raised_levels(3, 199, 66.2), 5);
+        // Up to MAX_RAISED_FACES faces: cheburashka (69.9 dB at 4 levels) gets one, not two.
+        assert_eq!(raised_levels(4, 200, 69.9), 5);
+        assert_eq!(raised_levels(3, 800, 60.0), 4);
+        assert_eq!(raised_levels(5, 200, 50.0), 5);
+        assert_eq!(raised_levels(2, 0, 10.0), MAX_DEFAULT_LEVELS.min(9));
+        assert_eq!(raised_levels(3, 200, f64::NAN), 3);
     }
 
     #[test]
