@@ -82,8 +82,9 @@ pub enum ComponentsArg {
 #[derive(Debug, clap::Args)]
 pub struct PrepareArgs {
     /// Subdivision levels: of the remesh of an irregular input (default: the fewest whose
-    /// finest level has twice the input's triangles, raised where that remesh stays below
-    /// 80 dB from the input, up to 2^18 finest faces), or required of a semi-regular input
+    /// finest level has twice the input's triangles, raised by up to two where that remesh
+    /// stays below 80 dB from the input, up to 2^18 finest faces), or required of a
+    /// semi-regular input
     /// (default: as many as it has).
     #[arg(long, value_name = "L", value_parser = clap::value_parser!(u32).range(1..=12))]
     pub levels: Option<u32>,
