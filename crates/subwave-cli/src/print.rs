@@ -195,6 +195,14 @@ pub fn report_table(r: &MeshReport) -> Table {
         "inconsistently oriented edges",
         count(r.inconsistent_orientation_edges),
     );
+    t.row(
+        "duplicated seam vertices",
+        if r.seam_vertices > 0 {
+            format!("{} (remesh --repair welds them)", count(r.seam_vertices))
+        } else {
+            count(0)
+        },
+    );
     t.row("crease edges", count(r.crease_edges));
     t.row(
         "vertex tags",

@@ -9,8 +9,9 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use crate::mesh::Mesh;
-use crate::topology::{Topology, VertexKind, VertexTag};
+use crate::topology::{Topology, UnionFind, VertexKind, VertexTag};
 use crate::MeshError;
+use glam::DVec3;
 
 /// Counts and measures of a mesh: the content of `subwave info`.
 ///
@@ -46,6 +47,9 @@ pub struct MeshReport {
     pub non_manifold_vertices: usize,
     /// Interior edges traversed in the same direction by both faces.
     pub inconsistent_orientation_edges: usize,
+    /// Vertices at the ends of boundary edges that lie exactly on other boundary edges
+    /// (duplicated seams, [`weld_seams`]), which `remesh --repair` welds.
+    pub seam_vertices: usize,
     /// Edges with a positive crease sharpness tag.
     pub crease_edges: usize,
     /// Vertex tags of Maret §3.5 (boundary edges count as creases).
@@ -116,6 +120,7 @@ pub fn report(mesh: &Mesh, topo: &Topology) -> MeshReport {
         non_manifold_edges: topo.non_manifold_edges().len(),
         non_manifold_vertices: topo.non_manifold_vertices().len(),
         inconsistent_orientation_edges: topo.inconsistent_edges.len(),
+        seam_vertices: weld_seams(&mesh.positions, &mesh.triangulate().0).1,
         crease_edges: topo.edge_sharpness.iter().filter(|&&s| s > 0.0).count(),
         tags,
         valence_histogram,
@@ -123,6 +128,74 @@ pub fn report(mesh: &Mesh, topo: &Topology) -> MeshReport {
         bbox_max: hi.to_array(),
         bbox_diagonal: (hi - lo).length(),
     }
+}
+
+/// Duplicated seams of the triangles `tris` over `positions`: for every vertex, the vertex
+/// it is welded into (itself if none), and the number of vertices welded into another.
+///
+/// Preconditions: the indices of `tris` are below `positions.len()`, and no triangle has
+/// two vertices at the same place (degenerate triangles removed first): a welded triangle
+/// then keeps three distinct vertices.
+///
+/// A boundary edge (on one triangle) is a seam edge when another boundary edge has its ends at
+/// exactly the same two positions (bit for bit, `-0.0` as `0.0`, either direction); the
+/// coincident ends of such edges are welded into the smallest index among them. Vertices
+/// that coincide without a coincident edge (parts touching at a point) are left apart.
+pub fn weld_seams(positions: &[DVec3], tris: &[[u32; 3]]) -> (Vec<u32>, usize) {
+    use std::collections::HashMap;
+    let n = positions.len();
+    let key = |v: u32| {
+        positions[v as usize]
+            .to_array()
+            .map(|x| (x + 0.0).to_bits())
+    };
+    // Undirected edges and the number of triangles on each.
+    let mut edges: HashMap<(u32, u32), u32> = HashMap::new();
+    for fv in tris {
+        for i in 0..3 {
+            let (a, b) = (fv[i], fv[(i + 1) % 3]);
+            *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    // Boundary edges grouped by their ends' positions (ordered so either direction matches).
+    // A place: the bits of a position.
+    type Place = [u64; 3];
+    let mut by_place: HashMap<(Place, Place), Vec<(u32, u32)>> = HashMap::new();
+    for (&(a, b), &count) in &edges {
+        if count != 1 {
+            continue;
+        }
+        let (ka, kb) = (key(a), key(b));
+        let (p, q) = if ka <= kb {
+            ((a, b), (ka, kb))
+        } else {
+            ((b, a), (kb, ka))
+        };
+        by_place.entry(q).or_default().push(p);
+    }
+    let mut uf = UnionFind::new(n);
+    for group in by_place.values() {
+        if let Some((&(a0, b0), rest)) = group.split_first() {
+            for &(a, b) in rest {
+                uf.union(a0, a);
+                uf.union(b0, b);
+            }
+        }
+    }
+    let mut smallest = vec![u32::MAX; n];
+    for v in 0..n as u32 {
+        let r = uf.find(v) as usize;
+        smallest[r] = smallest[r].min(v);
+    }
+    let root: Vec<u32> = (0..n as u32)
+        .map(|v| smallest[uf.find(v) as usize])
+        .collect();
+    let welded = root
+        .iter()
+        .enumerate()
+        .filter(|&(v, &r)| r as usize != v)
+        .count();
+    (root, welded)
 }
 
 /// Checks that the mesh is a consistently oriented 2-manifold (possibly with boundaries).
