@@ -133,9 +133,10 @@ pub fn report(mesh: &Mesh, topo: &Topology) -> MeshReport {
 /// Duplicated seams of the triangles `tris` over `positions`: for every vertex, the vertex
 /// it is welded into (itself if none), and the number of vertices welded into another.
 ///
-/// Preconditions: the indices of `tris` are below `positions.len()`, and no triangle has
-/// two vertices at the same place (degenerate triangles removed first): a welded triangle
-/// then keeps three distinct vertices.
+/// Precondition: the indices of `tris` are below `positions.len()`. For the weld to keep
+/// every triangle valid, no triangle may have two vertices at the same place (remove
+/// degenerate triangles first, as [`crate::remesh::repair::prepare`] does); the count of a
+/// mesh that has such triangles ([`report`]) includes their coincident boundary ends.
 ///
 /// A boundary edge (on one triangle) is a seam edge when another boundary edge has its ends at
 /// exactly the same two positions (bit for bit, `-0.0` as `0.0`, either direction); the

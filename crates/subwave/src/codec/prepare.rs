@@ -95,6 +95,9 @@ pub const GAIN_PER_LEVEL_DB: f64 = 9.0;
 /// Most faces of the finest level that [`CEILING_DB`] raises a remesh to: 2^18, five levels
 /// over 256 base faces (the bunny's default is five levels over 200).
 pub const MAX_RAISED_FACES: usize = 1 << 18;
+// A remesh that can be raised has at most a quarter of MAX_RAISED_FACES faces: the distance
+// from the input to it is measured (Prepared::input_distance), so the raise sees both sides.
+const _: () = assert!(MAX_RAISED_FACES / 4 <= MISS_CHECK_FACES);
 
 /// Most levels [`CEILING_DB`] adds: two (16 times the faces). Suzanne (500 faces, 54.2 dB at
 /// its default 2 levels) would want three: at 5 levels it tops out at 75.3 dB but takes
@@ -440,8 +443,9 @@ pub fn prepare(
             }
         }
         if opts.levels.is_none() && raised.is_none() {
-            // Where it tops out: the larger one-sided RMS (the input's side is measured on
-            // remeshes up to MISS_CHECK_FACES, which those below the ceiling are).
+            // Where it tops out: the larger one-sided RMS. The input's side is measured on
+            // remeshes of up to MISS_CHECK_FACES faces, which every remesh that can still be
+            // raised is (one level more must stay within MAX_RAISED_FACES).
             let rms = input_distance.map_or(remesh_rms, |d| d.0.max(remesh_rms));
             let psnr = crate::distance::psnr(diagonal, rms);
             let base_faces = r.hierarchy.base.num_faces();
