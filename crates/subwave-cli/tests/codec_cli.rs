@@ -1,4 +1,4 @@
-//! End-to-end tests of `subwave encode`, `subwave decode` and `subwave bench decode`.
+//! End-to-end tests of `subwave encode`, `subwave decode`, `subwave bench decode` and `subwave eval`.
 
 use std::process::{Command, Output, Stdio};
 
@@ -297,5 +297,84 @@ fn least_squares_offsets_and_on_surface() {
     assert!(
         fitted_db > on_db + 1.0,
         "fitted {fitted_db} dB, on the surface {on_db} dB"
+    );
+}
+
+/// `subwave eval` end to end: the rate-distortion points (JSON keys, bytes rising to the whole
+/// stream, bits per input vertex, PSNR not below the first point's), the remedies (none
+/// with given levels), the SVG plot and a peer's points compared at equal PSNR.
+#[test]
+fn eval_reports_points_plot_and_peer_ratios() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("t.obj");
+    let torus = generate::torus(1.0, 0.4, 25, 13, true);
+    write_mesh(&torus, &mesh, None).unwrap();
+    let reference = dir.path().join("peer.txt");
+    std::fs::write(
+        &reference,
+        "t.obj V=325 draco qp=6 bytes=300 bpv=7.4 psnr=35.0dB decode=0.1ms\n\
+         t.obj V=325 draco qp=8 bytes=900 bpv=22.2 psnr=47.0dB decode=0.1ms\n\
+         t.obj V=325 draco qp=10 bytes=1500 bpv=36.9 psnr=59.0dB decode=0.1ms\n\
+         t.obj V=325 draco qp=14 bytes=2700 bpv=66.5 psnr=83.0dB decode=0.1ms\n",
+    )
+    .unwrap();
+    let svg = dir.path().join("rd.svg");
+    let out = ok(&[
+        "eval",
+        mesh.to_str().unwrap(),
+        "--levels",
+        "2",
+        "--base-faces",
+        "64",
+        "--samples",
+        "5000",
+        "--points",
+        "8",
+        "--json",
+        "--svg",
+        svg.to_str().unwrap(),
+        "--reference",
+        reference.to_str().unwrap(),
+    ]);
+    let v: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["levels"], 2, "{v}");
+    assert_eq!(v["remeshed"], true, "{v}");
+    // Given levels: neither redone finer nor raised.
+    assert_eq!(v["missed"], serde_json::json!([]), "{v}");
+    assert!(v["raised"].is_null(), "{v}");
+    let points = v["points"].as_array().unwrap();
+    assert_eq!(points.len(), 8, "{v}");
+    let nv = torus.num_vertices() as f64;
+    let mut last_bytes = 0;
+    for p in points {
+        for key in ["bytes", "bpv", "rms", "max", "psnr"] {
+            assert!(p[key].is_number(), "{key} in {p}");
+        }
+        let bytes = p["bytes"].as_u64().unwrap();
+        assert!(bytes > last_bytes, "{v}");
+        last_bytes = bytes;
+        let bpv = p["bpv"].as_f64().unwrap();
+        assert!((bpv - 8.0 * bytes as f64 / nv).abs() < 1e-9, "{p}");
+        assert!(
+            p["rms"].as_f64().unwrap() <= p["max"].as_f64().unwrap(),
+            "{p}"
+        );
+    }
+    assert_eq!(last_bytes, v["stream_bytes"].as_u64().unwrap());
+    let psnr = |p: &Value| p["psnr"].as_f64().unwrap();
+    assert!(psnr(&points[7]) > psnr(&points[0]) + 10.0, "{v}");
+    // The peer's points, and our bytes over its own at each of our PSNRs within its range.
+    let r = &v["references"][0];
+    assert_eq!(r["points"].as_array().unwrap().len(), 4, "{v}");
+    let ratios = r["ratios"].as_array().unwrap();
+    assert_eq!(ratios.len(), 8);
+    assert!(
+        ratios.iter().any(|x| x.as_f64().is_some_and(|x| x > 0.0)),
+        "{v}"
+    );
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(
+        text.starts_with("<svg") && text.matches("<polyline").count() >= 2,
+        "{text}"
     );
 }
