@@ -30,6 +30,16 @@
 //! cost milliseconds, so the `subwave` executable turns them off ([`disable_huge_pages`])
 //! for every command but refinement (remeshing the bunny: 1.2–1.9 s of kernel time less).
 //!
+//! The cost of a first touch depends on how the VM's host backs the memory, and it changes
+//! from day to day. Measured again on 2026-12-05 (400 MiB touched once per page, a C program
+//! beside this crate): 4 KiB pages 126–132 ms every time, huge pages 47–2,822 ms (nine runs:
+//! 2,613, 52, 238, 92, 211, 773, 2,822, 47, 211). A one-shot `subwave subdivide` of the
+//! bunny's third Catmull-Clark level took 0.28–2.02 s (median 0.45 s of 8) with huge pages
+//! and 0.33–0.36 s without (run under `prctl(PR_SET_THP_DISABLE)`), while repeated
+//! refinements, which fault nothing once warm, were faster with them (`vs_opensubdiv`
+//! medians 92 against 101 ms: fewer TLB misses). Refinement keeps them for now; a one-shot
+//! command on such a host may do better without.
+//!
 //! The `subwave` executable, the benchmarks and the OpenSubdiv comparison use it (the
 //! comparison's C++ side keeps glibc's allocator; glibc's tunable
 //! `GLIBC_TUNABLES=glibc.malloc.hugetlb=1` gives it the huge-page advice too).
