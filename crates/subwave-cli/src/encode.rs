@@ -124,6 +124,7 @@ impl PrepareArgs {
             normal: self.remesh.into(),
             force_remesh: false,
             fit: !self.on_surface,
+            raise_levels: true,
         }
     }
 }
@@ -157,10 +158,12 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     let input_vertices = mesh.num_vertices();
     let t0 = Instant::now();
     // A semi-regular mesh is used as it is; anything else is remeshed first.
-    let popts = args.prep.options(matches!(
+    let mut popts = args.prep.options(matches!(
         args.wavelet,
         Some(WaveletArg::Linear | WaveletArg::Cubic)
     ));
+    // A lossless stream codes every vertex of the remesh: more levels only make it larger.
+    popts.raise_levels = !args.lossless;
     let prepared = crate::progress::with_bar("remesh", false, |cb| prepare(&mesh, &popts, cb))
         .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let prepare_ms = t0.elapsed().as_secs_f64() * 1e3;

@@ -378,3 +378,39 @@ fn eval_reports_points_plot_and_peer_ratios() {
         "{text}"
     );
 }
+
+/// With default levels, a remesh that tops out below 80 dB from the input is redone with more
+/// levels (a coarse torus over 40 base faces: 3 levels, 63 dB, raised to 5) for a lossy
+/// stream, not for a lossless one, which codes every vertex of the remesh exactly.
+#[test]
+fn default_levels_are_raised_for_lossy_streams_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("t.obj");
+    write_mesh(&generate::torus(1.0, 0.4, 25, 13, true), &mesh, None).unwrap();
+    let swv = dir.path().join("t.swv");
+    let encode = |lossless: bool| {
+        let mut args = vec![
+            "encode",
+            mesh.to_str().unwrap(),
+            "-o",
+            swv.to_str().unwrap(),
+            "--base-faces",
+            "40",
+        ];
+        if lossless {
+            args.push("--lossless");
+        }
+        ok(&args)
+    };
+    let lossy = encode(false);
+    assert!(
+        lossy.contains("levels raised: the remesh at 3 levels over 40 base faces")
+            && lossy.contains("remeshed, 5 levels"),
+        "{lossy}"
+    );
+    let lossless = encode(true);
+    assert!(
+        !lossless.contains("levels raised") && lossless.contains("remeshed, 3 levels"),
+        "{lossless}"
+    );
+}
