@@ -159,95 +159,68 @@ fn base_path(out: &Path) -> PathBuf {
     out.with_file_name(name)
 }
 
-/// A remesh over the default base faces that left flipped or degenerate faces, redone over
-/// more (JSON key `refolded`).
-#[derive(Clone, Copy, Debug, serde::Serialize)]
-struct Refolded {
-    base_faces: usize,
-    levels: u32,
-    flipped: usize,
-    degenerate: usize,
+/// One remesh of the base-face search: the remesh, its re-sampling (stats and
+/// milliseconds) and its distance to the input.
+struct Attempt {
+    r: Remeshed,
+    resampled: Option<(subwave::remesh::normal::NormalStats, f64)>,
+    d: Option<subwave::distance::Distance>,
+}
+
+impl subwave::remesh::default_base::Outcome for Attempt {
+    fn flipped(&self) -> usize {
+        self.r.quality.flipped
+    }
+    fn degenerate(&self) -> usize {
+        self.r.quality.degenerate
+    }
+    fn misses(&self) -> bool {
+        self.d.is_some_and(|d| d.ab.max > MISS_WARNING * d.diagonal)
+    }
 }
 
 /// Runs `subwave remesh`.
 pub fn run(args: &RemeshArgs) -> Result<()> {
     let mesh = subwave::io::read_mesh(&args.mesh, None)?;
     let mut opts = options(args);
-    // With the default base faces, a remesh that misses part of the input is redone over
-    // twice the base faces, up to `MAX_DEFAULT_BASE_FACES` (as `encode` does). One that
-    // leaves flipped or degenerate faces is redone over twice the base faces too, while
-    // that leaves strictly fewer, and the one with fewest is kept: a base too coarse for a
-    // part of the input thinner than its faces folds there (the welded teapot at 3 levels:
-    // 5 flipped faces over 200 base faces, none over 400, 65.6 → 76.5 dB).
-    let mut missed = Vec::new();
-    let mut refolded: Vec<Refolded> = Vec::new();
-    type Tried = (
-        Remeshed,
-        Option<(subwave::remesh::normal::NormalStats, f64)>,
-        Option<subwave::distance::Distance>,
-    );
-    let mut best: Option<(Tried, usize)> = None;
-    let folds = |r: &Remeshed| r.quality.flipped + r.quality.degenerate;
-    let tried = |r: &Remeshed, base_faces: usize, levels: u32| Refolded {
-        base_faces,
-        levels,
-        flipped: r.quality.flipped,
-        degenerate: r.quality.degenerate,
-    };
-    let (r, resampled, d) = loop {
-        let mut r = run_with_bar(&mesh, &opts, false)
-            .with_context(|| format!("remeshing {}", args.mesh.display()))?;
-        let resampled = if args.normal || args.fit {
-            let t = std::time::Instant::now();
-            let stats = subwave::remesh::normal::resample_remesh(
-                &mut r,
-                &mesh,
-                args.normal,
-                args.fit,
-                &Default::default(),
-            )
-            .with_context(|| format!("re-sampling the remesh of {}", args.mesh.display()))?;
-            Some((stats, t.elapsed().as_secs_f64() * 1e3))
-        } else {
-            None
-        };
-        let d = if args.samples > 0 {
-            Some(distance(&mesh, &r.mesh, args.samples as usize)?)
-        } else {
-            None
-        };
-        let misses = d.is_some_and(|d| d.ab.max > MISS_WARNING * d.diagonal);
-        let finer = subwave::codec::prepare::finer_base(opts.base_faces)
-            .filter(|_| misses && args.base_faces.is_none());
-        if let Some(b) = finer {
-            missed.push(subwave::codec::prepare::Missed {
-                base_faces: opts.base_faces,
-                levels: opts.levels,
-            });
-            opts.base_faces = b;
-            continue;
-        }
-        if args.base_faces.is_some() || (folds(&r) == 0 && best.is_none()) {
-            break (r, resampled, d);
-        }
-        // Default base faces and folds left (now or in an earlier try).
-        if let Some(((br, bres, bd), bbase)) = best.take() {
-            if folds(&r) >= folds(&br) {
-                // No better than the best: keep the best.
-                refolded.push(tried(&r, opts.base_faces, opts.levels));
-                opts.base_faces = bbase;
-                break (br, bres, bd);
-            }
-            refolded.push(tried(&br, bbase, opts.levels));
-        }
-        match subwave::codec::prepare::finer_base(opts.base_faces).filter(|_| folds(&r) > 0) {
-            Some(b) => {
-                best = Some(((r, resampled, d), opts.base_faces));
-                opts.base_faces = b;
-            }
-            None => break (r, resampled, d),
-        }
-    };
+    // Without --base-faces, a remesh over the default that misses part of the input or
+    // leaves folds is redone over more base faces (`remesh::default_base`).
+    let searched = subwave::remesh::default_base::search(
+        opts.base_faces,
+        opts.levels,
+        args.base_faces.is_none(),
+        |base_faces| {
+            let o = RemeshOptions {
+                base_faces,
+                ..opts.clone()
+            };
+            let mut r = run_with_bar(&mesh, &o, false)
+                .with_context(|| format!("remeshing {}", args.mesh.display()))?;
+            let resampled = if args.normal || args.fit {
+                let t = std::time::Instant::now();
+                let stats = subwave::remesh::normal::resample_remesh(
+                    &mut r,
+                    &mesh,
+                    args.normal,
+                    args.fit,
+                    &Default::default(),
+                )
+                .with_context(|| format!("re-sampling the remesh of {}", args.mesh.display()))?;
+                Some((stats, t.elapsed().as_secs_f64() * 1e3))
+            } else {
+                None
+            };
+            let d = if args.samples > 0 {
+                Some(distance(&mesh, &r.mesh, args.samples as usize)?)
+            } else {
+                None
+            };
+            Ok::<_, anyhow::Error>(Attempt { r, resampled, d })
+        },
+    )?;
+    opts.base_faces = searched.base_faces;
+    let (missed, refolded) = (searched.missed, searched.refolded);
+    let Attempt { r, resampled, d } = searched.kept;
     // Printed once, by the log (stderr, shown at its default level); JSON also lists them.
     let mut warnings = r.warnings.clone();
     if !missed.is_empty() {

@@ -35,6 +35,7 @@
 //! transforms take it directly; [`Remeshed::hierarchy`] is that hierarchy.
 
 pub mod ancestor_flatten;
+pub mod default_base;
 mod flatten;
 pub mod fold_repair;
 pub mod normal;

@@ -1,0 +1,250 @@
+//! The base-face search of `subwave remesh` when no base size is given: remeshes over more
+//! base faces where the one over the default misses part of the input or leaves folds.
+//!
+//! MAPS (Lee et al. 1998, §3) builds its base domain by simplification, and a base face
+//! larger than a thin part of the input either cuts the part off (the remesh *misses* it:
+//! the cow's tail at 200 base faces) or folds the remesh across it (the welded teapot's
+//! spout lip, suzanne, the cow at 5 levels). Both go with a finer base. This module holds the
+//! policy, as a function of what each remesh showed; the caller does the remeshing (with its
+//! progress display, re-sampling and distance measure) in a closure.
+//!
+//! Policy, from the default base faces:
+//! - a remesh that misses part of the input is redone over [`finer_base`] base faces (twice
+//!   as many, up to [`crate::codec::prepare::MAX_DEFAULT_BASE_FACES`]), and is never kept
+//!   while a finer base remains;
+//! - one that leaves flipped or degenerate faces is redone over [`finer_base`] base faces
+//!   while the new one leaves strictly fewer; the one with the fewest is kept (the first of
+//!   equals).
+
+use crate::codec::prepare::{finer_base, Missed};
+
+/// What a remesh over some base faces showed ([`search`] decides from it).
+pub trait Outcome {
+    /// Faces flipped against the input.
+    fn flipped(&self) -> usize;
+    /// Degenerate faces.
+    fn degenerate(&self) -> usize;
+    /// Whether it misses part of the input (the caller's distance test).
+    fn misses(&self) -> bool;
+}
+
+/// A remesh over the default base faces, or over a finer base after it, that left flipped
+/// or degenerate faces and was not kept (JSON keys `base_faces`, `levels`, `flipped`,
+/// `degenerate`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Refolded {
+    /// The base faces asked of it.
+    pub base_faces: usize,
+    /// Its levels.
+    pub levels: u32,
+    /// Its flipped faces.
+    pub flipped: usize,
+    /// Its degenerate faces.
+    pub degenerate: usize,
+}
+
+/// The outcome [`search`] kept and how it got there.
+#[derive(Debug)]
+pub struct Searched<O> {
+    /// The remesh kept.
+    pub kept: O,
+    /// The base faces asked of it.
+    pub base_faces: usize,
+    /// The remeshes that missed part of the input, in order.
+    pub missed: Vec<Missed>,
+    /// The remeshes that left more flipped or degenerate faces than the one kept, in order.
+    pub refolded: Vec<Refolded>,
+}
+
+/// Remeshes with `attempt(base_faces)` from `base_faces`, by the policy of the module
+/// documentation when `searching` (no base size was given), else once. `levels` only labels
+/// the records.
+///
+/// # Errors
+/// The first error of `attempt` (any error type: the caller's).
+pub fn search<O: Outcome, E>(
+    base_faces: usize,
+    levels: u32,
+    searching: bool,
+    mut attempt: impl FnMut(usize) -> Result<O, E>,
+) -> Result<Searched<O>, E> {
+    let folds = |o: &O| o.flipped() + o.degenerate();
+    let record = |o: &O, base_faces: usize| Refolded {
+        base_faces,
+        levels,
+        flipped: o.flipped(),
+        degenerate: o.degenerate(),
+    };
+    let mut base = base_faces;
+    let mut missed = Vec::new();
+    let mut refolded = Vec::new();
+    // The remesh with the fewest folds so far (of those that do not miss), and its base.
+    let mut best: Option<(O, usize)> = None;
+    loop {
+        let o = attempt(base)?;
+        let finer = finer_base(base).filter(|_| searching);
+        if o.misses() {
+            if let Some(b) = finer {
+                missed.push(Missed {
+                    base_faces: base,
+                    levels,
+                });
+                base = b;
+                continue;
+            }
+        }
+        if !searching || (folds(&o) == 0 && best.is_none()) {
+            return Ok(Searched {
+                kept: o,
+                base_faces: base,
+                missed,
+                refolded,
+            });
+        }
+        if let Some((b, b_base)) = best.take() {
+            if folds(&o) >= folds(&b) {
+                // No fewer than the best: the best is kept.
+                refolded.push(record(&o, base));
+                return Ok(Searched {
+                    kept: b,
+                    base_faces: b_base,
+                    missed,
+                    refolded,
+                });
+            }
+            refolded.push(record(&b, b_base));
+        }
+        match finer.filter(|_| folds(&o) > 0) {
+            Some(b) => {
+                best = Some((o, base));
+                base = b;
+            }
+            None => {
+                return Ok(Searched {
+                    kept: o,
+                    base_faces: base,
+                    missed,
+                    refolded,
+                })
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fake remesh: (flipped, degenerate, misses).
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    struct Fake(usize, usize, bool);
+
+    impl Outcome for Fake {
+        fn flipped(&self) -> usize {
+            self.0
+        }
+        fn degenerate(&self) -> usize {
+            self.1
+        }
+        fn misses(&self) -> bool {
+            self.2
+        }
+    }
+
+    /// Runs [`search`] over outcomes given per base size; returns the kept base, the bases
+    /// tried, and the records.
+    fn run(searching: bool, by_base: &[(usize, Fake)]) -> (usize, Vec<usize>, Searched<Fake>) {
+        let mut tried = Vec::new();
+        let s = search(200, 3, searching, |b| {
+            tried.push(b);
+            Ok::<_, ()>(by_base.iter().find(|x| x.0 == b).expect("base asked").1)
+        })
+        .unwrap();
+        (s.base_faces, tried, s)
+    }
+
+    #[test]
+    fn clean_remeshes_are_kept() {
+        let (base, tried, s) = run(true, &[(200, Fake(0, 0, false))]);
+        assert_eq!((base, tried), (200, vec![200]));
+        assert!(s.missed.is_empty() && s.refolded.is_empty());
+    }
+
+    #[test]
+    fn folds_are_remeshed_finer_while_that_leaves_fewer() {
+        // Teapot at 3 levels: 5 flipped over 200, none over 400.
+        let (base, tried, s) = run(true, &[(200, Fake(5, 0, false)), (400, Fake(0, 0, false))]);
+        assert_eq!((base, tried), (400, vec![200, 400]));
+        assert_eq!(
+            s.refolded,
+            [Refolded {
+                base_faces: 200,
+                levels: 3,
+                flipped: 5,
+                degenerate: 0
+            }]
+        );
+        // Cow at 5 levels: 18, 1, 0.
+        let (base, tried, s) = run(
+            true,
+            &[
+                (200, Fake(18, 0, false)),
+                (400, Fake(1, 0, false)),
+                (800, Fake(0, 0, false)),
+            ],
+        );
+        assert_eq!((base, tried), (800, vec![200, 400, 800]));
+        let bases: Vec<usize> = s.refolded.iter().map(|r| r.base_faces).collect();
+        assert_eq!(bases, [200, 400]);
+        // Beetle: no fewer over 400 (8 + 1 against 8): the 200 is kept.
+        let (base, tried, s) = run(true, &[(200, Fake(8, 0, false)), (400, Fake(8, 1, false))]);
+        assert_eq!((base, tried), (200, vec![200, 400]));
+        assert_eq!(s.kept, Fake(8, 0, false));
+        assert_eq!(s.refolded[0].base_faces, 400);
+        // At the largest default base, the folds stay.
+        let (base, tried, _) = run(
+            true,
+            &[
+                (200, Fake(9, 0, false)),
+                (400, Fake(7, 0, false)),
+                (800, Fake(5, 0, false)),
+            ],
+        );
+        assert_eq!((base, tried), (800, vec![200, 400, 800]));
+    }
+
+    #[test]
+    fn misses_go_finer_before_folds_count() {
+        // Cow at 3 levels: misses over 200 and 400, 5 flipped over 800 (the largest).
+        let (base, tried, s) = run(
+            true,
+            &[
+                (200, Fake(0, 0, true)),
+                (400, Fake(0, 0, true)),
+                (800, Fake(5, 0, false)),
+            ],
+        );
+        assert_eq!((base, tried), (800, vec![200, 400, 800]));
+        assert_eq!(s.missed.len(), 2);
+        assert!(s.refolded.is_empty());
+        // A remesh that misses is not kept as the best of the folds.
+        let (base, _, s) = run(
+            true,
+            &[
+                (200, Fake(3, 0, false)),
+                (400, Fake(0, 0, true)),
+                (800, Fake(1, 0, false)),
+            ],
+        );
+        assert_eq!(base, 800);
+        assert_eq!(s.missed[0].base_faces, 400);
+        assert_eq!(s.refolded[0].base_faces, 200);
+    }
+
+    #[test]
+    fn a_given_base_is_kept() {
+        let (base, tried, s) = run(false, &[(200, Fake(5, 1, true))]);
+        assert_eq!((base, tried), (200, vec![200]));
+        assert!(s.missed.is_empty() && s.refolded.is_empty());
+    }
+}
