@@ -313,37 +313,51 @@ fn misses(v: &serde_json::Value) -> bool {
         .any(|w| w.as_str().unwrap().contains("misses part of the input"))
 }
 
+/// `subwave remesh --repair --json` of corpus mesh `name` with `args`, and `--base-faces` when
+/// given: the JSON and the standard error. `None` (with a note) when the corpus is absent.
+fn corpus_remesh(
+    name: &str,
+    args: &[&str],
+) -> Option<impl Fn(Option<&str>) -> (serde_json::Value, String)> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/meshes")
+        .join(name);
+    if !path.is_file() {
+        eprintln!("note: the corpus is absent; skipped");
+        return None;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let args: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+    Some(move |base_faces: Option<&str>| {
+        let out = dir.path().join("out.obj");
+        let mut all = vec![
+            "remesh".to_string(),
+            path.to_str().unwrap().to_string(),
+            "--repair".to_string(),
+            "-o".to_string(),
+            out.to_str().unwrap().to_string(),
+            "--json".to_string(),
+        ];
+        all.extend(args.iter().cloned());
+        if let Some(n) = base_faces {
+            all.extend(["--base-faces".to_string(), n.to_string()]);
+        }
+        let refs: Vec<&str> = all.iter().map(String::as_str).collect();
+        let o = run(&refs);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        (v, String::from_utf8_lossy(&o.stderr).to_string())
+    })
+}
+
 /// A part of the input the base mesh cuts off is reported with where it is: the cow's tail at
 /// 2 levels over 200 given base faces (8.9% of the diagonal). With the default base faces the
 /// remesh is redone over 400, then 800, and the retries are reported. (A sphere's remesh
 /// misses nothing: `remesh_writes_a_semi_regular_mesh_and_its_base`.)
 #[test]
 fn a_part_the_remesh_misses_is_reported() {
-    let cow = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/meshes/cow.obj");
-    if !cow.is_file() {
-        eprintln!("note: the corpus is absent; skipped");
+    let Some(remesh) = corpus_remesh("cow.obj", &["--levels", "2"]) else {
         return;
-    }
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("out.obj");
-    let remesh = |base_faces: Option<&str>| {
-        let mut args = vec![
-            "remesh",
-            cow.to_str().unwrap(),
-            "--repair",
-            "-o",
-            out.to_str().unwrap(),
-            "--levels",
-            "2",
-            "--json",
-        ];
-        if let Some(n) = base_faces {
-            args.extend(["--base-faces", n]);
-        }
-        let o = run(&args);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-        (v, String::from_utf8_lossy(&o.stderr).to_string())
     };
     let (v, stderr) = remesh(Some("200"));
     assert!(misses(&v), "{v}");
@@ -370,34 +384,8 @@ fn a_part_the_remesh_misses_is_reported() {
 /// spout's rolled lip over 200 base faces (5 flipped) and not over 400; a given base is kept.
 #[test]
 fn folds_left_over_the_default_base_are_remeshed_finer() {
-    let teapot =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/meshes/teapot.obj");
-    if !teapot.is_file() {
-        eprintln!("note: the corpus is absent; skipped");
+    let Some(remesh) = corpus_remesh("teapot.obj", &["--levels", "3", "--samples", "20000"]) else {
         return;
-    }
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("out.obj");
-    let remesh = |base_faces: Option<&str>| {
-        let mut args = vec![
-            "remesh",
-            teapot.to_str().unwrap(),
-            "--repair",
-            "-o",
-            out.to_str().unwrap(),
-            "--levels",
-            "3",
-            "--samples",
-            "20000",
-            "--json",
-        ];
-        if let Some(n) = base_faces {
-            args.extend(["--base-faces", n]);
-        }
-        let o = run(&args);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-        (v, String::from_utf8_lossy(&o.stderr).to_string())
     };
     let (given, _) = remesh(Some("200"));
     assert!(given["flipped"].as_u64().unwrap() > 0, "{given}");
