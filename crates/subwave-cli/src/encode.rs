@@ -215,17 +215,8 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     if let Some(rms) = prepared.remesh_rms {
         println!("{}", print::remesh_distance(rms, mesh.diagonal()));
     }
-    if prepared.input_distance.is_some() || !prepared.missed.is_empty() || prepared.raised.is_some()
-    {
-        println!(
-            "{}",
-            print::input_distance(
-                prepared.input_distance,
-                mesh.diagonal(),
-                &prepared.missed,
-                prepared.raised.as_ref(),
-            )
-        );
+    if let Some(line) = print::input_distance(&prepared, mesh.diagonal()) {
+        println!("{line}");
     }
     if let Some(d) = prepared.input_distance {
         if d.1 > subwave::codec::prepare::MISS_FRACTION * mesh.diagonal() {

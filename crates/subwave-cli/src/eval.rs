@@ -128,18 +128,8 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         prepare(&mesh, &args.prep.options(quads), cb)
     })
     .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
-    if !args.json
-        && (prep.input_distance.is_some() || !prep.missed.is_empty() || prep.raised.is_some())
-    {
-        println!(
-            "{}",
-            print::input_distance(
-                prep.input_distance,
-                mesh.diagonal(),
-                &prep.missed,
-                prep.raised.as_ref(),
-            )
-        );
+    if let Some(line) = print::input_distance(&prep, mesh.diagonal()).filter(|_| !args.json) {
+        println!("{line}");
     }
     if let (Some(n), false) = (&prep.normal, args.json) {
         println!("{}", print::normal_stats(n));

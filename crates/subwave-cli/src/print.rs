@@ -279,15 +279,14 @@ pub fn remesh_distance(rms: f64, diagonal: f64) -> String {
     )
 }
 
-/// The line on the distance from the input to its remesh (`(rms, max)`, if it was measured),
-/// on the remeshes that missed part of the input before it (empty: none) and on the one
-/// redone with more levels because it topped out below the ceiling (`raised`).
-pub fn input_distance(
-    distance: Option<(f64, f64)>,
-    diagonal: f64,
-    missed: &[subwave::codec::prepare::Missed],
-    raised: Option<&subwave::codec::prepare::Raised>,
-) -> String {
+/// The line on the distance from the input to its remesh (if it was measured), on the
+/// remeshes that missed part of the input before it and on the one redone with more levels
+/// because it topped out below the ceiling; `None` when there is none of these.
+pub fn input_distance(p: &subwave::codec::prepare::Prepared, diagonal: f64) -> Option<String> {
+    let (distance, missed, raised) = (p.input_distance, &p.missed, p.raised.as_ref());
+    if distance.is_none() && missed.is_empty() && raised.is_none() {
+        return None;
+    }
     let mut s = String::from("remesh: ");
     if let Some((rms, max)) = distance {
         s += &format!(
@@ -322,7 +321,7 @@ pub fn input_distance(
             subwave::codec::prepare::CEILING_DB
         );
     }
-    s
+    Some(s)
 }
 
 #[cfg(test)]

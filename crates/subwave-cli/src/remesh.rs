@@ -10,11 +10,12 @@ use subwave::distance::distance;
 
 /// Distance from the input to the remesh, as a fraction of the diagonal, beyond which the
 /// remesh misses part of the input: `remesh` then redoes a remesh over the default base
-/// faces over twice as many (up to `codec::prepare::MAX_DEFAULT_BASE_FACES`), or warns.
+/// faces over twice as many (up to `remesh::default_base::MAX_DEFAULT_BASE_FACES`), or warns.
 /// Measured at 3 levels over 200 base faces: the cow's tail is cut off (8.9%; it takes 800
 /// base faces to keep it, 0.99%) and cheburashka's ears are cut short (3.2%; 400 base faces:
 /// 1.9%); the other corpus meshes stay at 0.7–2.2%.
 const MISS_WARNING: f64 = 0.03;
+use subwave::remesh::default_base::Outcome;
 use subwave::remesh::{remesh_with_progress, MethodChoice, RemeshOptions, Remeshed};
 
 use crate::print;
@@ -127,7 +128,9 @@ fn options(args: &RemeshArgs) -> RemeshOptions {
         levels: args.levels,
         base_faces: args
             .base_faces
-            .map_or(subwave::codec::prepare::DEFAULT_BASE_FACES, |n| n as usize),
+            .map_or(subwave::remesh::default_base::DEFAULT_BASE_FACES, |n| {
+                n as usize
+            }),
         quads: args.quads,
         sharp_angle: args.sharp_angle,
         repair: args.repair,
@@ -167,7 +170,7 @@ struct Attempt {
     d: Option<subwave::distance::Distance>,
 }
 
-impl subwave::remesh::default_base::Outcome for Attempt {
+impl Outcome for Attempt {
     fn flipped(&self) -> usize {
         self.r.quality.flipped
     }
@@ -220,6 +223,7 @@ pub fn run(args: &RemeshArgs) -> Result<()> {
     )?;
     opts.base_faces = searched.base_faces;
     let (missed, refolded) = (searched.missed, searched.refolded);
+    let misses = searched.kept.misses();
     let Attempt { r, resampled, d } = searched.kept;
     // Printed once, by the log (stderr, shown at its default level); JSON also lists them.
     let mut warnings = r.warnings.clone();
@@ -250,7 +254,7 @@ pub fn run(args: &RemeshArgs) -> Result<()> {
             list.join(", ")
         ));
     }
-    if let Some(d) = d.filter(|d| d.ab.max > MISS_WARNING * d.diagonal) {
+    if let Some(d) = d.filter(|_| misses) {
         warnings.push(format!(
             "the remesh misses part of the input: the input's point {} is {:.2}% of the diagonal from it (a thin part the base mesh of {} faces cuts off?); more --base-faces keep such parts",
             crate::distance::point(d.ab.farthest),

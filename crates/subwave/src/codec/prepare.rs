@@ -11,6 +11,10 @@ use crate::codec::progressive::{EncodeOptions, Wavelet};
 use crate::distance::{sample_surface, sampled_rms_to, ClosestPoint};
 use crate::hierarchy::Hierarchy;
 use crate::mesh::Mesh;
+// The base-size rule is the remesher's; re-exported here, where the codec applies it.
+pub use crate::remesh::default_base::{
+    finer_base, Missed, DEFAULT_BASE_FACES, MAX_DEFAULT_BASE_FACES,
+};
 use crate::remesh::normal::{resample_hierarchy, NormalOptions, NormalStats, NormalSurface};
 use crate::remesh::normal_fit::FitStats;
 use crate::remesh::{remesh_with_progress, RemeshOptions, Remeshed};
@@ -25,8 +29,6 @@ use rayon::prelude::*;
 pub const FACE_RATIO: usize = 2;
 /// Most levels [`default_levels`] chooses.
 pub const MAX_DEFAULT_LEVELS: u32 = 6;
-/// Default base faces of the remesh of an irregular input.
-pub const DEFAULT_BASE_FACES: usize = 200;
 /// Area samples of [`Prepared::remesh_rms`].
 pub const REMESH_SAMPLES: usize = 20_000;
 /// The quantization error [`Prepared::encode_options`] allows, as a share of the remesh's
@@ -48,27 +50,6 @@ pub const FEATURE_ANGLE: f64 = 40.0;
 /// (74.8 dB); the coded streams of the other corpus meshes at their default levels: spot
 /// 0.9%, cheburashka 1.5%, suzanne 1.6%, teapot 2.0%.
 pub const MISS_FRACTION: f64 = 0.025;
-
-/// Most base faces [`prepare`] asks of a remesh that missed part of the input with the
-/// default base faces ([`MISS_FRACTION`]): four times [`DEFAULT_BASE_FACES`].
-///
-/// A thin part that the base mesh cuts off (the simplification pays little to shorten it)
-/// comes back with a finer base at half the vertices of a finer level. The cow (2,903
-/// vertices; 2026-12-05, normal remesh, Draco at compression level 10 beside it): over 200
-/// base faces it misses its tail at 3 and 4 levels, and 5 levels (102,402 vertices) code to
-/// 82 KB in 8.8 s, topping out at 70.3 dB, at 1.48× Draco's bytes at 66.8 dB, 2.27× at
-/// 68.8, 3.60× at 70.0; over 400 base faces 3 levels still miss (3.5%), over 800 they do not
-/// (0.99%): 25,602 vertices, 34 KB (2.9 s with the two remeshes that missed), topping out
-/// at 75.8 dB, at 1.24× Draco at 66.0 dB, 1.52× at 68.7, 1.92× at 70.8 (since
-/// [`CEILING_DB`], raised to 4 levels over 800: 102,402 vertices, topping out at 83.3 dB).
-pub const MAX_DEFAULT_BASE_FACES: usize = 4 * DEFAULT_BASE_FACES;
-
-/// The base faces to try after a remesh over `base_faces` (default ones) missed part of the
-/// input: twice as many, up to [`MAX_DEFAULT_BASE_FACES`]; `None` once there (`subwave
-/// remesh` follows the same steps).
-pub fn finer_base(base_faces: usize) -> Option<usize> {
-    (base_faces < MAX_DEFAULT_BASE_FACES).then(|| (2 * base_faces).min(MAX_DEFAULT_BASE_FACES))
-}
 
 /// With default levels, a remesh that does not miss the input but stays farther from it
 /// than this PSNR (dB; the larger of the one-sided RMS distances against the input's
@@ -134,16 +115,6 @@ pub fn raised_levels(levels: u32, base_faces: usize, psnr: f64) -> u32 {
         raised += 1;
     }
     raised
-}
-
-/// A remesh that missed part of the input ([`MISS_FRACTION`]) before the one [`prepare`]
-/// kept (JSON keys `base_faces`, `levels`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-pub struct Missed {
-    /// The base faces asked of it.
-    pub base_faces: usize,
-    /// Its levels.
-    pub levels: u32,
 }
 
 /// The distance from the input to a remesh ([`Prepared::input_distance`]) is measured only
