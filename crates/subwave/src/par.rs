@@ -91,6 +91,147 @@ where
     out
 }
 
+/// Uninitialised slots written front to back: the writer of one part of a vector built by
+/// [`par_parts`] or [`par_parts2`], which check that every part is written full.
+pub(crate) struct Filler<'a, T> {
+    slots: &'a mut [std::mem::MaybeUninit<T>],
+    len: usize,
+}
+
+impl<T: Copy> Filler<'_, T> {
+    /// Writes the next slot (a bounds-check panic past the part's end).
+    #[inline(always)]
+    pub(crate) fn push(&mut self, x: T) {
+        self.slots[self.len].write(x);
+        self.len += 1;
+    }
+
+    /// Writes the next `xs.len()` slots.
+    #[inline(always)]
+    pub(crate) fn extend(&mut self, xs: &[T]) {
+        let dst = &mut self.slots[self.len..self.len + xs.len()];
+        for (d, &x) in dst.iter_mut().zip(xs) {
+            d.write(x);
+        }
+        self.len += xs.len();
+    }
+
+    /// How many slots are written.
+    #[inline(always)]
+    pub(crate) fn len(&self) -> usize {
+        self.len
+    }
+
+    /// The written slots from `from` on (empty if `from` is past them).
+    pub(crate) fn written_from(&mut self, from: usize) -> &mut [T] {
+        let from = from.min(self.len);
+        let w = &mut self.slots[from..self.len];
+        // SAFETY: slots below `len` were written (by `push` or `extend`), and
+        // `MaybeUninit<T>` has the layout of `T`.
+        unsafe { std::slice::from_raw_parts_mut(w.as_mut_ptr().cast::<T>(), w.len()) }
+    }
+
+    fn is_full(&self) -> bool {
+        self.len == self.slots.len()
+    }
+}
+
+/// Cuts the spare capacity of `v` (empty, with capacity for the sum of the parts' lengths)
+/// into consecutive fillers of the jobs' lengths.
+fn fillers<'a, T, J>(v: &'a mut Vec<T>, jobs: Vec<(J, usize)>) -> Vec<(J, Filler<'a, T>)> {
+    let mut rest = v.spare_capacity_mut();
+    jobs.into_iter()
+        .map(|(job, len)| {
+            let (slots, tail) = std::mem::take(&mut rest).split_at_mut(len);
+            rest = tail;
+            (job, Filler { slots, len: 0 })
+        })
+        .collect()
+}
+
+/// A vector of the jobs' lengths' sum, its consecutive parts (one per job, of the job's
+/// length) written in parallel by `fill`, without zeroing the buffer first (a large zeroed
+/// allocation costs a `memset` when the allocator reuses memory).
+///
+/// # Panics
+/// If `fill` panics, or leaves a part not written full (nothing is returned then).
+pub(crate) fn par_parts<T, J>(
+    jobs: Vec<(J, usize)>,
+    fill: impl Fn(J, &mut Filler<T>) + Sync + Send,
+) -> Vec<T>
+where
+    T: Copy + Send,
+    J: Send,
+{
+    let n = jobs.iter().map(|j| j.1).sum();
+    let mut out = Vec::with_capacity(n);
+    let full = fillers(&mut out, jobs)
+        .into_par_iter()
+        .map(|(job, mut f)| {
+            fill(job, &mut f);
+            f.is_full()
+        })
+        .all(|x| x);
+    assert!(full, "par_parts: a part was not written full");
+    // SAFETY: the fillers cover the first `n` slots, and each was written full (checked).
+    unsafe { out.set_len(n) };
+    out
+}
+
+/// A vector of `n` elements written front to back by `fill` (serially), without zeroing
+/// the buffer first.
+///
+/// # Panics
+/// If `fill` panics, or writes fewer or more than `n` elements.
+pub(crate) fn filled_vec<T: Copy>(n: usize, fill: impl FnOnce(&mut Filler<T>)) -> Vec<T> {
+    let mut out = Vec::with_capacity(n);
+    let mut f = Filler {
+        slots: &mut out.spare_capacity_mut()[..n],
+        len: 0,
+    };
+    fill(&mut f);
+    assert!(f.is_full(), "filled_vec: {} of {n} elements written", f.len);
+    // SAFETY: the filler's slots are the first `n`, all written (checked).
+    unsafe { out.set_len(n) };
+    out
+}
+
+/// [`par_parts`] with two vectors of the same lengths, written side by side.
+///
+/// # Panics
+/// As [`par_parts`].
+pub(crate) fn par_parts2<A, B, J>(
+    jobs: Vec<(J, usize)>,
+    fill: impl Fn(J, &mut Filler<A>, &mut Filler<B>) + Sync + Send,
+) -> (Vec<A>, Vec<B>)
+where
+    A: Copy + Send,
+    B: Copy + Send,
+    J: Send,
+{
+    let n = jobs.iter().map(|j| j.1).sum();
+    let lens: Vec<usize> = jobs.iter().map(|j| j.1).collect();
+    let (mut a, mut b) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let fa = fillers(&mut a, jobs);
+    let fb = fillers(&mut b, lens.into_iter().map(|l| ((), l)).collect());
+    let full = fa
+        .into_par_iter()
+        .zip(fb)
+        .map(|((job, mut x), (_, mut y))| {
+            fill(job, &mut x, &mut y);
+            x.is_full() && y.is_full()
+        })
+        .all(|x| x);
+    assert!(full, "par_parts2: a part was not written full");
+    // SAFETY: the fillers of each vector cover its first `n` slots, and each was written full
+    // (checked).
+    unsafe {
+        a.set_len(n);
+        b.set_len(n);
+    }
+    (a, b)
+}
+
 /// Hints the processor to fetch `x`'s cache line (nothing where `x` is `None`, or off x86-64).
 #[inline(always)]
 pub(crate) fn prefetch<T>(x: Option<&T>) {
@@ -150,6 +291,46 @@ mod tests {
                 .collect();
             assert_eq!(v, want, "{n} {late} {chunk}");
         }
+    }
+
+    #[test]
+    fn parts_are_written_in_order() {
+        let jobs: Vec<(usize, usize)> = [3, 0, 5, 1].into_iter().enumerate().collect();
+        let v = super::par_parts(jobs.clone(), |j, f| {
+            for k in 0..[3, 0, 5, 1][j] {
+                f.push(10 * j + k);
+            }
+            f.written_from(0).reverse();
+        });
+        assert_eq!(v, [2, 1, 0, 24, 23, 22, 21, 20, 30]);
+        let (a, b) = super::par_parts2(jobs, |j, x, y| {
+            let n = [3, 0, 5, 1][j];
+            x.extend(&vec![j as u8; n]);
+            (0..n).for_each(|k| y.push(k as u16));
+            assert_eq!(x.len(), y.len());
+        });
+        assert_eq!(a, [0, 0, 0, 2, 2, 2, 2, 2, 3]);
+        assert_eq!(b, [0, 1, 2, 0, 1, 2, 3, 4, 0]);
+    }
+
+    #[test]
+    fn filled_vec_writes_front_to_back() {
+        assert_eq!(super::filled_vec(3, |f| f.extend(&[1u8, 2, 3])), [1, 2, 3]);
+        assert!(super::filled_vec::<u8>(0, |_| ()).is_empty());
+        let r = std::panic::catch_unwind(|| super::filled_vec(3, |f| f.push(1u8)));
+        assert!(r.is_err(), "a short fill panics");
+    }
+
+    #[test]
+    #[should_panic(expected = "not written full")]
+    fn a_part_left_short_panics() {
+        super::par_parts(vec![((), 4)], |_, f| f.push(1u32));
+    }
+
+    #[test]
+    #[should_panic(expected = "out of range")]
+    fn a_part_written_past_its_end_panics() {
+        super::par_parts(vec![((), 1), ((), 1)], |_, f| f.extend(&[1u32, 2]));
     }
 
     #[test]

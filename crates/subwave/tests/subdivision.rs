@@ -757,3 +757,49 @@ fn zero_levels_keep_colours_and_uvs() {
         assert_eq!(r.uvs, m.uvs);
     }
 }
+
+/// The finest level carries the tags that are still sharp, and none when the input has no
+/// interior crease or corner (boundaries are sharp without being tags).
+#[test]
+fn finest_level_tags_follow_the_creases() {
+    for scheme in [Scheme::CatmullClark, Scheme::Loop] {
+        let base = if scheme == Scheme::Loop {
+            generate::icosphere(1)
+        } else {
+            generate::cube()
+        };
+        let plain = subdivide(&base, &opts(scheme, 2)).unwrap();
+        assert!(plain.edge_tags.is_empty() && plain.vertex_tags.is_empty());
+        let mut tagged = base.clone();
+        let t = Topology::build(&base);
+        tagged.edge_tags.push(EdgeTag {
+            vertices: t.edge_vertices[0],
+            sharpness: 2.5,
+        });
+        tagged.vertex_tags.push(VertexTag {
+            vertex: 3,
+            sharpness: 3.0,
+        });
+        for (levels, edges, vertex) in [(1, 2, Some(2.0)), (2, 4, Some(1.0)), (3, 0, None)] {
+            let fine = subdivide(&tagged, &opts(scheme, levels)).unwrap();
+            assert_eq!(fine.edge_tags.len(), edges, "{scheme:?} {levels}");
+            assert!(fine
+                .edge_tags
+                .iter()
+                .all(|e| (e.sharpness - (2.5 - levels as f64)).abs() < 1e-12));
+            assert_eq!(fine.vertex_tags.first().map(|v| v.sharpness), vertex);
+        }
+    }
+    // A boundary only: sharp under every boundary mode, and never a tag.
+    for boundary in [BoundaryMode::Crease, BoundaryMode::OpenSubdiv] {
+        let fine = subdivide(
+            &generate::grid(3, 3, false),
+            &SubdivideOptions {
+                boundary,
+                ..opts(Scheme::CatmullClark, 2)
+            },
+        )
+        .unwrap();
+        assert!(fine.edge_tags.is_empty() && fine.vertex_tags.is_empty());
+    }
+}

@@ -293,6 +293,10 @@ impl Refinement {
         if opts.levels == 0 {
             (face_offsets, face_vertices) = (topo.face_offsets.clone(), topo.face_vertices.clone());
         }
+        // Creases only soften from level to level, and new edges and vertices are smooth: a
+        // level 0 without sharp interior edges or sharp vertices has no tags at any level, and
+        // the finest level's scan for them (millions of edges) is skipped.
+        let tagged = has_interior_tags(&topo);
         // The current level's `stencil::vertex_features`, once derived with it.
         let mut features: Option<Vec<u8>> = None;
         /// What a level hands to the next: its child topology with its features, or the
@@ -328,10 +332,12 @@ impl Refinement {
                     let features = child_features(&topo, &child, &halves);
                     Next::Child(Box::new(child), features)
                 } else {
-                    Next::Finest(
-                        refine::child_faces(&topo, split),
-                        finest_tags(&topo, opts.creasing),
-                    )
+                    let tags = if tagged {
+                        finest_tags(&topo, opts.creasing)
+                    } else {
+                        Default::default()
+                    };
+                    Next::Finest(refine::child_faces(&topo, split), tags)
                 }
             };
             // The child values and the child topology depend only on the parent: overlap them,
@@ -672,6 +678,13 @@ fn child_features(parent: &Topology, child: &Topology, halves: &[[u32; 2]]) -> V
         }
     }
     features
+}
+
+/// Whether `topo` has an interior edge or a vertex with positive sharpness (what
+/// [`finest_tags`] turns into tags; boundary edges are sharp without being tags).
+fn has_interior_tags(topo: &Topology) -> bool {
+    topo.vertex_sharpness.iter().any(|&s| s > 0.0)
+        || (0..topo.num_edges()).any(|e| topo.edge_sharpness[e] > 0.0 && !topo.is_boundary_edge(e))
 }
 
 /// Tags of the level refined from `parent`: the halves of its sharp interior edges (child

@@ -31,8 +31,7 @@
 //!   then two trisection points per sharp edge on trisection steps; children `3f..3f+2` of
 //!   face `f` lie along its edges `v_i v_{i+1}`, see [`super::sqrt3`]'s ordering contract.
 
-use rayon::prelude::*;
-
+use crate::par::Filler;
 use crate::topology::{Topology, VertexFaces};
 
 /// How a scheme splits faces.
@@ -130,19 +129,16 @@ pub fn child_faces(parent: &Topology, split: Split) -> (Vec<u32>, Vec<u32>) {
         }
         Split::Polygons => {
             let nc = parent.face_vertices.len();
-            let mut fv = vec![0u32; 4 * nc];
-            // Face f's children start at 4 · face_offsets[f]: split the output at face chunks.
-            let mut parts = Vec::with_capacity(nf.div_ceil(FACE_CHUNK));
-            let mut rest = fv.as_mut_slice();
-            for lo in (0..nf).step_by(FACE_CHUNK) {
-                let hi = (lo + FACE_CHUNK).min(nf);
-                let len = 4 * (parent.face_offsets[hi] - parent.face_offsets[lo]) as usize;
-                let (head, tail) = rest.split_at_mut(len);
-                parts.push((lo..hi, head));
-                rest = tail;
-            }
-            parts.into_par_iter().for_each(|(faces, out)| {
-                let mut k = 0;
+            // Face f's children take 4 · (its corners) slots: parts of face chunks.
+            let jobs = (0..nf)
+                .step_by(FACE_CHUNK)
+                .map(|lo| {
+                    let hi = (lo + FACE_CHUNK).min(nf);
+                    let len = 4 * (parent.face_offsets[hi] - parent.face_offsets[lo]) as usize;
+                    (lo..hi, len)
+                })
+                .collect();
+            let fv = crate::par::par_parts(jobs, |faces, out| {
                 for f in faces {
                     let v = parent.face_vertices(f);
                     let e = parent.face_edges(f);
@@ -150,8 +146,7 @@ pub fn child_faces(parent: &Topology, split: Split) -> (Vec<u32>, Vec<u32>) {
                     let n = v.len();
                     for i in 0..n {
                         let prev = if i == 0 { n - 1 } else { i - 1 };
-                        out[k..k + 4].copy_from_slice(&[v[i], nv + e[i], c, nv + e[prev]]);
-                        k += 4;
+                        out.extend(&[v[i], nv + e[i], c, nv + e[prev]]);
                     }
                 }
             });
@@ -250,9 +245,9 @@ impl ChildEdgeList<'_> {
     }
 
     /// The edges of the children `(v_i, m_i, c, m_{i-1})` of polygon `v` (edges `e`) around
-    /// face point `c`, into `out` (four per child).
+    /// face point `c`, onto `out` (four per child).
     #[inline(always)]
-    fn polygon(&mut self, v: &[u32], e: &[u32], nv: u32, c: u32, out: &mut [u32]) {
+    fn polygon(&mut self, v: &[u32], e: &[u32], nv: u32, c: u32, out: &mut Filler<u32>) {
         let n = v.len();
         let mut first_interior = 0u32;
         let mut prev_interior = 0u32;
@@ -273,7 +268,7 @@ impl ChildEdgeList<'_> {
                 prev_interior
             };
             let h_in = self.half(e[ip], false, [mp, v[i]]);
-            out[4 * i..4 * i + 4].copy_from_slice(&[h_out, int_i, int_p, h_in]);
+            out.extend(&[h_out, int_i, int_p, h_in]);
             prev_interior = int_i;
         }
     }
@@ -292,7 +287,6 @@ pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
     let nv = parent.num_vertices;
     let ne = parent.num_edges();
     let nf = parent.num_faces();
-    let mut face_edges = vec![0u32; face_vertices.len()];
     // Every parent edge has two halves, and every split makes one interior edge per parent
     // corner (a triangle's three inner edges, an n-gon's n spokes): the exact count.
     let count = 2 * ne + parent.face_vertices.len();
@@ -305,33 +299,30 @@ pub fn child_edges(parent: &Topology, split: Split) -> ChildEdges {
         seen: 0,
     };
     let ne32 = ne as u32;
-    // Quad/triangle: the face point of the next quad.
-    let mut q = nv + ne32;
-    for f in 0..nf {
-        let v = parent.face_vertices(f);
-        let e = parent.face_edges(f);
-        match split {
-            Split::Triangles => {
-                face_edges[12 * f..12 * f + 12].copy_from_slice(&edges.triangle(v, e, nv));
-            }
-            Split::Polygons => {
-                let base = 4 * parent.face_offsets[f] as usize;
-                let out = &mut face_edges[base..base + 4 * v.len()];
-                edges.polygon(v, e, nv, nv + ne32 + f as u32, out);
-            }
-            Split::QuadTri => {
-                // Children of face f are 4f..4f+3, starting at this corner of the child list.
-                let base = face_offsets[4 * f] as usize;
-                if v.len() == 3 {
-                    face_edges[base..base + 12].copy_from_slice(&edges.triangle(v, e, nv));
-                } else {
-                    edges.polygon(v, e, nv, q, &mut face_edges[base..base + 4 * v.len()]);
-                    q += 1;
+    // The child faces' edges in face order, one serial part (edges are numbered in scan order).
+    let face_edges = crate::par::filled_vec(face_vertices.len(), |out| {
+        // Quad/triangle: the face point of the next quad.
+        let mut q = nv + ne32;
+        for f in 0..nf {
+            let v = parent.face_vertices(f);
+            let e = parent.face_edges(f);
+            match split {
+                Split::Triangles => out.extend(&edges.triangle(v, e, nv)),
+                Split::Polygons => edges.polygon(v, e, nv, nv + ne32 + f as u32, out),
+                Split::QuadTri => {
+                    // Children of face f are 4f..4f+3, starting at this corner of the list.
+                    debug_assert_eq!(out.len(), face_offsets[4 * f] as usize);
+                    if v.len() == 3 {
+                        out.extend(&edges.triangle(v, e, nv));
+                    } else {
+                        edges.polygon(v, e, nv, q, out);
+                        q += 1;
+                    }
                 }
             }
+            edges.seen = edges.seen.max(e.iter().max().map_or(0, |&x| x + 1));
         }
-        edges.seen = edges.seen.max(e.iter().max().map_or(0, |&x| x + 1));
-    }
+    });
     let len = edges.len;
     debug_assert_eq!(len, count, "child edge count");
     // SAFETY: slots `0..len` were written (slot `k` when `len` was `k`, before it advanced)
@@ -402,41 +393,28 @@ fn polygon_child_vertex_faces(parent: &Topology, vf: &[u32]) -> (Vec<u32>, Vec<u
     let ne = parent.num_edges();
     let n_child = vf.len() - 2;
     // Child vertex k's faces start at vf[k + 1].
-    let total = vf[n_child + 1] as usize;
-    let mut faces = vec![0u32; total];
-    let mut corners = vec![0u16; total];
-    let mut jobs = Vec::with_capacity(n_child.div_ceil(CHUNK));
-    let (mut fr, mut cr) = (&mut faces[..], &mut corners[..]);
-    for k0 in (0..n_child).step_by(CHUNK) {
-        let k1 = (k0 + CHUNK).min(n_child);
-        let len = (vf[k1 + 1] - vf[k0 + 1]) as usize;
-        let (f, f_rest) = std::mem::take(&mut fr).split_at_mut(len);
-        let (c, c_rest) = std::mem::take(&mut cr).split_at_mut(len);
-        (fr, cr) = (f_rest, c_rest);
-        jobs.push((k0..k1, f, c));
-    }
-    jobs.into_par_iter().for_each(|(range, fs, cs)| {
-        let mut at = 0;
-        macro_rules! put {
-            ($f:expr, $c:expr) => {{
-                fs[at] = $f;
-                cs[at] = $c;
-                at += 1;
-            }};
-        }
+    let jobs = (0..n_child)
+        .step_by(CHUNK)
+        .map(|k0| {
+            let k1 = (k0 + CHUNK).min(n_child);
+            (k0..k1, (vf[k1 + 1] - vf[k0 + 1]) as usize)
+        })
+        .collect();
+    let (faces, corners) = crate::par::par_parts2(jobs, |range, fs, cs| {
         for k in range {
             if k < nv {
-                let start = at;
+                let start = fs.len();
                 for (&f, &i) in parent
                     .vertex_faces(k)
                     .iter()
                     .zip(parent.vertex_face_corners(k))
                 {
-                    put!(parent.face_offsets[f as usize] + u32::from(i), 0);
+                    fs.push(parent.face_offsets[f as usize] + u32::from(i));
+                    cs.push(0);
                 }
                 // Ordered 1-rings (a level-0 parent) are not in face order.
                 if parent.rings_ordered {
-                    fs[start..at].sort_unstable();
+                    fs.written_from(start).sort_unstable();
                 }
             } else if k < nv + ne {
                 let e = (k - nv) as u32;
@@ -445,22 +423,22 @@ fn polygon_child_vertex_faces(parent: &Topology, vf: &[u32]) -> (Vec<u32>, Vec<u
                     let fe = parent.face_edges(f as usize);
                     let i = fe.iter().position(|&x| x == e).unwrap_or(0);
                     if i + 1 < fe.len() {
-                        put!(o + i as u32, 1);
-                        put!(o + i as u32 + 1, 3);
+                        fs.extend(&[o + i as u32, o + i as u32 + 1]);
+                        cs.extend(&[1, 3]);
                     } else {
-                        put!(o, 3);
-                        put!(o + i as u32, 1);
+                        fs.extend(&[o, o + i as u32]);
+                        cs.extend(&[3, 1]);
                     }
                 }
             } else {
                 let f = k - nv - ne;
                 let o = parent.face_offsets[f];
                 for i in 0..parent.face_vertices(f).len() as u32 {
-                    put!(o + i, 2);
+                    fs.push(o + i);
+                    cs.push(2);
                 }
             }
         }
-        debug_assert_eq!(at, fs.len(), "child vertex-face counts");
     });
     (faces, corners)
 }
