@@ -352,8 +352,10 @@ fn corpus_remesh(
 
 /// A part of the input the base mesh cuts off is reported with where it is: the cow's tail at
 /// 2 levels over 200 given base faces (8.9% of the diagonal). With the default base faces the
-/// remesh is redone over 400, then 800, and the retries are reported. (A sphere's remesh
-/// misses nothing: `remesh_writes_a_semi_regular_mesh_and_its_base`.)
+/// remesh is redone over 400, then 800, and the retries are reported; over 800 it folds once,
+/// and the fold search goes past that largest default to 1,600 base faces (32,000 faces at 2
+/// levels), which leave none. (A sphere's remesh misses nothing:
+/// `remesh_writes_a_semi_regular_mesh_and_its_base`.)
 #[test]
 fn a_part_the_remesh_misses_is_reported() {
     let Some(remesh) = corpus_remesh("cow.obj", &["--levels", "2"]) else {
@@ -374,8 +376,15 @@ fn a_part_the_remesh_misses_is_reported() {
     );
     assert!(!misses(&v), "{v}");
     assert!(
-        stderr.contains("remeshed over 800 base faces: over 200 and 400"),
+        stderr.contains("remeshed over 1600 base faces: over 200 and 400"),
         "{stderr}"
+    );
+    assert_eq!(v["refolded"][0]["base_faces"], 800, "{v}");
+    assert!(v["refolded"][0]["flipped"].as_u64().unwrap() > 0, "{v}");
+    assert_eq!(
+        (v["flipped"].as_u64(), v["degenerate"].as_u64()),
+        (Some(0), Some(0)),
+        "{v}"
     );
 }
 

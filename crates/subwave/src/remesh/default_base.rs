@@ -12,9 +12,10 @@
 //! - a remesh that misses part of the input is redone over [`finer_base`] base faces (twice
 //!   as many, up to [`MAX_DEFAULT_BASE_FACES`]), and is never kept
 //!   while a finer base remains;
-//! - one that leaves flipped or degenerate faces is redone over [`finer_base`] base faces
-//!   while the new one leaves strictly fewer; the one with the fewest is kept (the first of
-//!   equals).
+//! - one that leaves flipped or degenerate faces is redone over [`finer_base_for_folds`]
+//!   base faces (twice as many, past [`MAX_DEFAULT_BASE_FACES`] while the finest level keeps
+//!   at most [`MAX_FOLD_FACES`] faces) while the new one leaves strictly fewer; the one with
+//!   the fewest is kept (the first of equals).
 //!
 //! The codec's [`crate::codec::prepare`] takes the same base steps for a remesh that misses
 //! part of the input (then one level finer), and does not retry folds: it repairs the folds
@@ -42,6 +43,35 @@ pub const MAX_DEFAULT_BASE_FACES: usize = 4 * DEFAULT_BASE_FACES;
 /// input or left folds: twice as many, up to [`MAX_DEFAULT_BASE_FACES`]; `None` once there.
 pub fn finer_base(base_faces: usize) -> Option<usize> {
     (base_faces < MAX_DEFAULT_BASE_FACES).then(|| (2 * base_faces).min(MAX_DEFAULT_BASE_FACES))
+}
+
+/// Most faces of the finest level of a remesh redone for its folds over more than
+/// [`MAX_DEFAULT_BASE_FACES`] base faces (2^18, the codec's
+/// [`crate::codec::prepare::MAX_RAISED_FACES`]).
+///
+/// The cow at 3 levels (5,804 input faces, `remesh --repair`, 2026-12-05): over 800 base faces
+/// 5 flipped faces (73.7 dB), over 1,600 one (79.9 dB), over 3,200 none (86.4 dB, 204,800
+/// faces); each try takes 1.5–2 s. At 5 levels even 800 base faces make 819,200 faces, so
+/// the search ends there as before.
+pub const MAX_FOLD_FACES: usize = 1 << 18;
+
+/// Most base faces a remesh redone for its folds is asked: sixteen times the default (a base
+/// mesh is a simplification of the input; the cow has 5,804 faces).
+pub const MAX_FOLD_BASE_FACES: usize = 16 * DEFAULT_BASE_FACES;
+
+/// The base faces to try after a remesh over `base_faces` at `levels` left folds:
+/// [`finer_base`], then past [`MAX_DEFAULT_BASE_FACES`] twice as many, up to
+/// [`MAX_FOLD_BASE_FACES`], while the finest level keeps at most [`MAX_FOLD_FACES`] faces;
+/// `None` after.
+pub fn finer_base_for_folds(base_faces: usize, levels: u32) -> Option<usize> {
+    finer_base(base_faces).or_else(|| {
+        let b = 2 * base_faces;
+        if b > MAX_FOLD_BASE_FACES {
+            return None;
+        }
+        let faces = 4usize.checked_pow(levels).and_then(|n| n.checked_mul(b))?;
+        (faces <= MAX_FOLD_FACES).then_some(b)
+    })
 }
 
 /// A remesh that missed part of the input before the one kept (JSON keys `base_faces`,
@@ -94,8 +124,8 @@ pub struct Searched<O> {
 }
 
 /// Remeshes with `attempt(base_faces)` from `base_faces`, by the policy of the module
-/// documentation when `searching` (no base size was given), else once. `levels` only labels
-/// the records.
+/// documentation when `searching` (no base size was given), else once. `levels` are the
+/// remeshes' levels (they bound the base faces tried for folds, and label the records).
 ///
 /// # Errors
 /// The first error of `attempt` (any error type: the caller's).
@@ -151,7 +181,7 @@ pub fn search<O: Outcome, E>(
             }
             refolded.push(record(&b, b_base));
         }
-        match finer.filter(|_| folds(&o) > 0) {
+        match finer_base_for_folds(base, levels).filter(|_| searching && folds(&o) > 0) {
             Some(b) => {
                 best = Some((o, base));
                 base = b;
@@ -191,8 +221,17 @@ mod tests {
     /// Runs [`search`] over outcomes given per base size; returns the kept base, the bases
     /// tried, and the records.
     fn run(searching: bool, by_base: &[(usize, Fake)]) -> (usize, Vec<usize>, Searched<Fake>) {
+        run_levels(3, searching, by_base)
+    }
+
+    /// [`run`] at `levels`.
+    fn run_levels(
+        levels: u32,
+        searching: bool,
+        by_base: &[(usize, Fake)],
+    ) -> (usize, Vec<usize>, Searched<Fake>) {
         let mut tried = Vec::new();
-        let s = search(200, 3, searching, |b| {
+        let s = search(200, levels, searching, |b| {
             tried.push(b);
             Ok::<_, ()>(by_base.iter().find(|x| x.0 == b).expect("base asked").1)
         })
@@ -238,32 +277,48 @@ mod tests {
         assert_eq!((base, tried), (200, vec![200, 400]));
         assert_eq!(s.kept, Fake(8, 0, false));
         assert_eq!(s.refolded[0].base_faces, 400);
-        // At the largest default base, the folds stay.
-        let (base, tried, _) = run(
-            true,
-            &[
-                (200, Fake(9, 0, false)),
-                (400, Fake(7, 0, false)),
-                (800, Fake(5, 0, false)),
-            ],
-        );
+        // Past the largest default base while the finest level stays small: 3 levels over
+        // 3,200 base faces make 204,800 faces, over 6,400 too many.
+        let steps = [
+            (200, Fake(9, 0, false)),
+            (400, Fake(7, 0, false)),
+            (800, Fake(5, 0, false)),
+            (1600, Fake(2, 0, false)),
+            (3200, Fake(1, 0, false)),
+        ];
+        let (base, tried, _) = run(true, &steps);
+        assert_eq!((base, tried), (3200, vec![200, 400, 800, 1600, 3200]));
+        // At 5 levels the largest default base is the last.
+        let (base, tried, _) = run_levels(5, true, &steps);
         assert_eq!((base, tried), (800, vec![200, 400, 800]));
+        assert_eq!(finer_base_for_folds(800, 5), None);
+        assert_eq!(finer_base_for_folds(800, 3), Some(1600));
+        assert_eq!(finer_base_for_folds(3200, 3), None);
+        assert_eq!(finer_base_for_folds(200, 20), Some(400));
+        assert_eq!(finer_base_for_folds(800, 40), None);
+        // Never past sixteen times the default base, even at few levels.
+        assert_eq!(finer_base_for_folds(1600, 1), Some(3200));
+        assert_eq!(finer_base_for_folds(3200, 1), None);
     }
 
     #[test]
     fn misses_go_finer_before_folds_count() {
-        // Cow at 3 levels: misses over 200 and 400, 5 flipped over 800 (the largest).
+        // Cow at 3 levels: misses over 200 and 400, then 5, 1 and 0 flipped over 800, 1,600
+        // and 3,200.
         let (base, tried, s) = run(
             true,
             &[
                 (200, Fake(0, 0, true)),
                 (400, Fake(0, 0, true)),
                 (800, Fake(5, 0, false)),
+                (1600, Fake(1, 0, false)),
+                (3200, Fake(0, 0, false)),
             ],
         );
-        assert_eq!((base, tried), (800, vec![200, 400, 800]));
+        assert_eq!((base, tried), (3200, vec![200, 400, 800, 1600, 3200]));
         assert_eq!(s.missed.len(), 2);
-        assert!(s.refolded.is_empty());
+        let bases: Vec<usize> = s.refolded.iter().map(|r| r.base_faces).collect();
+        assert_eq!(bases, [800, 1600]);
         // A remesh that misses is not kept as the best of the folds.
         let (base, _, s) = run(
             true,
@@ -271,6 +326,7 @@ mod tests {
                 (200, Fake(3, 0, false)),
                 (400, Fake(0, 0, true)),
                 (800, Fake(1, 0, false)),
+                (1600, Fake(1, 0, false)),
             ],
         );
         assert_eq!(base, 800);
