@@ -45,8 +45,8 @@ pub struct RemeshArgs {
     pub levels: u32,
     /// Target number of base triangles [default: 200, raised to 400, then 800, where the
     /// remesh over fewer misses part of the input by over 3% of the diagonal, or leaves
-    /// flipped or degenerate faces that more base faces reduce (for those up to 3200, while
-    /// the remesh keeps at most 2^18 faces); a given number is kept].
+    /// flipped or degenerate faces that more base faces reduce (for those up to 3200 and the
+    /// input's triangles, while the remesh keeps at most 2^18 faces); a given number is kept].
     #[arg(long, value_name = "N",
           value_parser = clap::value_parser!(u64).range(1..=10_000_000))]
     pub base_faces: Option<u64>,
@@ -189,9 +189,14 @@ pub fn run(args: &RemeshArgs) -> Result<()> {
     let mut opts = options(args);
     // Without --base-faces, a remesh over the default that misses part of the input or
     // leaves folds is redone over more base faces (`remesh::default_base`).
+    // The input's triangles (polygons fanned), which bound the base faces tried for folds.
+    let input_faces = (0..mesh.num_faces())
+        .map(|f| mesh.face(f).len().saturating_sub(2))
+        .sum();
     let searched = subwave::remesh::default_base::search(
         opts.base_faces,
         opts.levels,
+        input_faces,
         args.base_faces.is_none(),
         |base_faces| {
             let o = RemeshOptions {

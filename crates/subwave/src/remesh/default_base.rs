@@ -14,8 +14,9 @@
 //!   while a finer base remains;
 //! - one that leaves flipped or degenerate faces is redone over [`finer_base_for_folds`]
 //!   base faces (twice as many, past [`MAX_DEFAULT_BASE_FACES`] while the finest level keeps
-//!   at most [`MAX_FOLD_FACES`] faces) while the new one leaves strictly fewer; the one with
-//!   the fewest is kept (the first of equals).
+//!   at most [`MAX_FOLD_FACES`] faces and the base no more than the input's triangles) while
+//!   the new one leaves strictly fewer; the one with the fewest is kept (the first of
+//!   equals).
 //!
 //! The codec's [`crate::codec::prepare`] takes the same base steps for a remesh that misses
 //! part of the input (then one level finer), and does not retry folds: it repairs the folds
@@ -59,14 +60,15 @@ pub const MAX_FOLD_FACES: usize = 1 << 18;
 /// mesh is a simplification of the input; the cow has 5,804 faces).
 pub const MAX_FOLD_BASE_FACES: usize = 16 * DEFAULT_BASE_FACES;
 
-/// The base faces to try after a remesh over `base_faces` at `levels` left folds:
-/// [`finer_base`], then past [`MAX_DEFAULT_BASE_FACES`] twice as many, up to
-/// [`MAX_FOLD_BASE_FACES`], while the finest level keeps at most [`MAX_FOLD_FACES`] faces;
-/// `None` after.
-pub fn finer_base_for_folds(base_faces: usize, levels: u32) -> Option<usize> {
+/// The base faces to try after a remesh over `base_faces` at `levels` of an input of
+/// `input_faces` triangles left folds: [`finer_base`], then past [`MAX_DEFAULT_BASE_FACES`]
+/// twice as many, up to [`MAX_FOLD_BASE_FACES`] and to `input_faces` (a base mesh simplifies
+/// the input: the beetle's 2,053 triangles stop it at 800, where asking 3,200 gave a base of
+/// 2,015), while the finest level keeps at most [`MAX_FOLD_FACES`] faces; `None` after.
+pub fn finer_base_for_folds(base_faces: usize, levels: u32, input_faces: usize) -> Option<usize> {
     finer_base(base_faces).or_else(|| {
         let b = 2 * base_faces;
-        if b > MAX_FOLD_BASE_FACES {
+        if b > MAX_FOLD_BASE_FACES || b > input_faces {
             return None;
         }
         let faces = 4usize.checked_pow(levels).and_then(|n| n.checked_mul(b))?;
@@ -125,13 +127,15 @@ pub struct Searched<O> {
 
 /// Remeshes with `attempt(base_faces)` from `base_faces`, by the policy of the module
 /// documentation when `searching` (no base size was given), else once. `levels` are the
-/// remeshes' levels (they bound the base faces tried for folds, and label the records).
+/// remeshes' levels and `input_faces` the input's triangles (both bound the base faces tried
+/// for folds; the levels label the records).
 ///
 /// # Errors
 /// The first error of `attempt` (any error type: the caller's).
 pub fn search<O: Outcome, E>(
     base_faces: usize,
     levels: u32,
+    input_faces: usize,
     searching: bool,
     mut attempt: impl FnMut(usize) -> Result<O, E>,
 ) -> Result<Searched<O>, E> {
@@ -181,7 +185,8 @@ pub fn search<O: Outcome, E>(
             }
             refolded.push(record(&b, b_base));
         }
-        match finer_base_for_folds(base, levels).filter(|_| searching && folds(&o) > 0) {
+        match finer_base_for_folds(base, levels, input_faces).filter(|_| searching && folds(&o) > 0)
+        {
             Some(b) => {
                 best = Some((o, base));
                 base = b;
@@ -231,7 +236,7 @@ mod tests {
         by_base: &[(usize, Fake)],
     ) -> (usize, Vec<usize>, Searched<Fake>) {
         let mut tried = Vec::new();
-        let s = search(200, levels, searching, |b| {
+        let s = search(200, levels, 6000, searching, |b| {
             tried.push(b);
             Ok::<_, ()>(by_base.iter().find(|x| x.0 == b).expect("base asked").1)
         })
@@ -291,14 +296,17 @@ mod tests {
         // At 5 levels the largest default base is the last.
         let (base, tried, _) = run_levels(5, true, &steps);
         assert_eq!((base, tried), (800, vec![200, 400, 800]));
-        assert_eq!(finer_base_for_folds(800, 5), None);
-        assert_eq!(finer_base_for_folds(800, 3), Some(1600));
-        assert_eq!(finer_base_for_folds(3200, 3), None);
-        assert_eq!(finer_base_for_folds(200, 20), Some(400));
-        assert_eq!(finer_base_for_folds(800, 40), None);
-        // Never past sixteen times the default base, even at few levels.
-        assert_eq!(finer_base_for_folds(1600, 1), Some(3200));
-        assert_eq!(finer_base_for_folds(3200, 1), None);
+        assert_eq!(finer_base_for_folds(800, 5, 6000), None);
+        assert_eq!(finer_base_for_folds(800, 3, 6000), Some(1600));
+        assert_eq!(finer_base_for_folds(3200, 3, 6000), None);
+        assert_eq!(finer_base_for_folds(200, 20, 6000), Some(400));
+        assert_eq!(finer_base_for_folds(800, 40, 6000), None);
+        // Never past sixteen times the default base, even at few levels, nor past the
+        // input's triangles.
+        assert_eq!(finer_base_for_folds(1600, 1, 6000), Some(3200));
+        assert_eq!(finer_base_for_folds(3200, 1, 100_000), None);
+        assert_eq!(finer_base_for_folds(800, 3, 2053), Some(1600));
+        assert_eq!(finer_base_for_folds(1600, 3, 2053), None);
     }
 
     #[test]
