@@ -63,8 +63,9 @@ pub const MAX_FOLD_BASE_FACES: usize = 16 * DEFAULT_BASE_FACES;
 /// The base faces to try after a remesh over `base_faces` at `levels` of an input of
 /// `input_faces` triangles left folds: [`finer_base`], then past [`MAX_DEFAULT_BASE_FACES`]
 /// twice as many, up to [`MAX_FOLD_BASE_FACES`] and to `input_faces` (a base mesh simplifies
-/// the input: the beetle's 2,053 triangles stop it at 800, where asking 3,200 gave a base of
-/// 2,015), while the finest level keeps at most [`MAX_FOLD_FACES`] faces; `None` after.
+/// the input: the beetle's 2,053 triangles stop it at 1,600, where asking 3,200 had given a
+/// base of 2,015), while the finest level keeps at most [`MAX_FOLD_FACES`] faces; `None`
+/// after.
 pub fn finer_base_for_folds(base_faces: usize, levels: u32, input_faces: usize) -> Option<usize> {
     finer_base(base_faces).or_else(|| {
         let b = 2 * base_faces;
