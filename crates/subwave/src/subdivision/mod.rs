@@ -293,9 +293,7 @@ impl Refinement {
         if opts.levels == 0 {
             (face_offsets, face_vertices) = (topo.face_offsets.clone(), topo.face_vertices.clone());
         }
-        // Creases only soften from level to level, and new edges and vertices are smooth: a
-        // level 0 without sharp interior edges or sharp vertices has no tags at any level, and
-        // the finest level's scan for them (millions of edges) is skipped.
+        // Whether the finest level can have tags at all (see `finest_tags`).
         let tagged = has_interior_tags(&topo);
         // The current level's `stencil::vertex_features`, once derived with it.
         let mut features: Option<Vec<u8>> = None;
@@ -332,12 +330,10 @@ impl Refinement {
                     let features = child_features(&topo, &child, &halves);
                     Next::Child(Box::new(child), features)
                 } else {
-                    let tags = if tagged {
-                        finest_tags(&topo, opts.creasing)
-                    } else {
-                        Default::default()
-                    };
-                    Next::Finest(refine::child_faces(&topo, split), tags)
+                    Next::Finest(
+                        refine::child_faces(&topo, split),
+                        finest_tags(&topo, opts.creasing, tagged),
+                    )
                 }
             };
             // The child values and the child topology depend only on the parent: overlap them,
@@ -682,14 +678,26 @@ fn child_features(parent: &Topology, child: &Topology, halves: &[[u32; 2]]) -> V
 
 /// Whether `topo` has an interior edge or a vertex with positive sharpness (what
 /// [`finest_tags`] turns into tags; boundary edges are sharp without being tags).
-fn has_interior_tags(topo: &Topology) -> bool {
+pub(crate) fn has_interior_tags(topo: &Topology) -> bool {
     topo.vertex_sharpness.iter().any(|&s| s > 0.0)
         || (0..topo.num_edges()).any(|e| topo.edge_sharpness[e] > 0.0 && !topo.is_boundary_edge(e))
 }
 
 /// Tags of the level refined from `parent`: the halves of its sharp interior edges (child
 /// edge `(w, V + e)`, sharpness by the creasing rule) and its decremented corners.
-fn finest_tags(parent: &Topology, creasing: Creasing) -> (Vec<EdgeTag>, Vec<VertexTag>) {
+///
+/// `tagged` is [`has_interior_tags`] of level 0. Creases only soften from level to level,
+/// and new edges and vertices are smooth: without sharp interior edges or sharp vertices at
+/// level 0 no level has tags, and the scan of `parent` (millions of edges at the finest
+/// levels) is skipped.
+fn finest_tags(
+    parent: &Topology,
+    creasing: Creasing,
+    tagged: bool,
+) -> (Vec<EdgeTag>, Vec<VertexTag>) {
+    if !tagged {
+        return Default::default();
+    }
     let nv = parent.num_vertices;
     let mut edges = Vec::new();
     let mut incident = Vec::new();

@@ -20,7 +20,9 @@ use std::time::Instant;
 use glam::DVec3;
 
 use super::stencil::{self, LevelContext};
-use super::{child_sharpness, finest_tags, prepare, refine, subdivide, Refinement};
+use super::{
+    child_sharpness, finest_tags, has_interior_tags, prepare, refine, subdivide, Refinement,
+};
 use super::{SubdivideOptions, Topology};
 use crate::mesh::Mesh;
 use crate::Result;
@@ -153,6 +155,7 @@ fn topology_levels(mesh: &Mesh, opts: &SubdivideOptions) -> Vec<Topology> {
     let Ok(p) = prepare(mesh, opts) else {
         return Vec::new();
     };
+    let tagged = has_interior_tags(&p.topo);
     let mut topo = p.topo;
     let mut levels = Vec::with_capacity(opts.levels as usize);
     for level in 0..opts.levels {
@@ -165,7 +168,7 @@ fn topology_levels(mesh: &Mesh, opts: &SubdivideOptions) -> Vec<Topology> {
             levels.push(std::mem::replace(&mut topo, child));
         } else {
             std::hint::black_box(refine::child_faces(&topo, p.split));
-            std::hint::black_box(finest_tags(&topo, opts.creasing));
+            std::hint::black_box(finest_tags(&topo, opts.creasing, tagged));
             levels.push(std::mem::take(&mut topo));
         }
     }
