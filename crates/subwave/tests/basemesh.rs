@@ -115,7 +115,7 @@ fn corpus_meshes_roundtrip_and_non_manifold_ones_error() {
             other => panic!("{name}: expected a manifold error, got {other:?}"),
         }
         // Coded after the repair (`compress-base --repair`): the target holds per vertex
-        // of the input, though the repair adds the split vertices (beetle: 1,148 -> 1,254).
+        // of the input, though the repair adds the split vertices (beetle: 1,148 -> 1,192).
         let (pos, tris, _) = subwave::remesh::repair::prepare(&mesh, true).unwrap();
         let repaired = Mesh::from_triangles(pos, &tris);
         let e = roundtrip(&repaired, 12);

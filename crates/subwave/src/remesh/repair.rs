@@ -16,6 +16,13 @@
 //! coincident ends ([`weld_seams`]). Only edges are matched, so parts that merely touch at a
 //! vertex stay apart; a weld that makes an edge non-manifold (three coincident rims) is cut
 //! again by the repair above.
+//!
+//! Then it drops *pocket lids* ([`drop_pocket_lids`]): a triangle each of whose edges is on
+//! exactly three faces, and on the other side of which a small patch of faces closes a
+//! pocket over the same three edges. Modellers glue a part (a mirror, a handle) onto a body
+//! by adding its sides over a triangle of the body and leaving that triangle in place; it is
+//! then inside the solid, where cutting its edges would leave a pocket of three sheets
+//! whose resampled triangles the remesher folds (the beetle has nine such lids).
 
 use std::collections::VecDeque;
 
@@ -47,6 +54,9 @@ pub struct RepairReport {
     pub added_vertices: usize,
     /// Vertices welded into a coincident one to close duplicated seams (only with repair).
     pub welded_vertices: usize,
+    /// Faces removed as the lids of pockets glued onto the surface (only with repair,
+    /// [`drop_pocket_lids`]).
+    pub lid_faces: usize,
     /// Without repair: vertices that the repair would weld (the ends of boundary edges that
     /// coincide with other boundary edges), left apart; 0 with repair.
     pub seam_vertices: usize,
@@ -63,6 +73,11 @@ impl RepairReport {
                 self.welded_vertices,
                 "welded",
                 "vertex(es) into coincident ones to close duplicated seams",
+            ),
+            (
+                self.lid_faces,
+                "removed",
+                "face(s) closing a pocket glued onto the surface along their edges (inside the solid)",
             ),
             (
                 self.non_manifold_edges,
@@ -195,6 +210,9 @@ pub fn prepare(mesh: &Mesh, repair: bool) -> Result<(Vec<DVec3>, Vec<[u32; 3]>, 
     } else {
         report.seam_vertices = seam_vertices;
     }
+    if repair {
+        report.lid_faces = drop_pocket_lids(&mut kept);
+    }
     // Drop unreferenced vertices.
     let mut map = vec![u32::MAX; mesh.positions.len()];
     let mut positions = Vec::new();
@@ -237,6 +255,177 @@ pub fn prepare(mesh: &Mesh, repair: bool) -> Result<(Vec<DVec3>, Vec<[u32; 3]>, 
     report.flipped_faces = flipped;
     report.added_vertices = added;
     Ok((positions, tris, report))
+}
+
+/// Largest pocket (in faces) whose lid [`drop_pocket_lids`] removes, and the number of
+/// faces the surface on the lid's other side must exceed: a part glued onto a body is a
+/// few faces (the beetle's are 3 or 1).
+pub const MAX_POCKET_FACES: usize = 64;
+
+/// Removes the *lids of pockets* from `tris`: a triangle `t` each of whose three edges is on
+/// exactly three of the (remaining) triangles, such that
+/// - a patch of at most [`MAX_POCKET_FACES`] other triangles, connected across edges on two
+///   triangles, is bounded by exactly `t`'s three edges (the pocket: with `t` a closed
+///   surface), and
+/// - the third triangle on each edge belongs to a surface that reaches more than
+///   [`MAX_POCKET_FACES`] triangles across edges on two triangles (the body the pocket is
+///   glued onto; fins standing on `t`'s edges, or a small body, keep `t`, and their edges
+///   are cut as any non-manifold edge).
+///
+/// Without `t` each of its edges is on two faces, and the pocket's sides continue the
+/// body's surface. Lids are tested and removed one at a time, in index order, so that each
+/// removal is seen by the next tests; the order of the other triangles is kept. Returns the
+/// number removed.
+///
+/// Preconditions: no triangle repeats a vertex; no two triangles have the same vertex set
+/// (as [`prepare`] makes them).
+pub fn drop_pocket_lids(tris: &mut Vec<[u32; 3]>) -> usize {
+    let nf = tris.len();
+    // Edges as (smaller vertex, larger vertex, face), sorted: each edge a run.
+    let mut corners: Vec<(u32, u32, u32)> = Vec::with_capacity(3 * nf);
+    for (f, t) in tris.iter().enumerate() {
+        for i in 0..3 {
+            let (a, b) = (t[i], t[(i + 1) % 3]);
+            corners.push((a.min(b), a.max(b), f as u32));
+        }
+    }
+    corners.sort_unstable();
+    // Edge ids, the faces of each edge (offsets into `edge_face`) and each face's edges.
+    let mut edge_start: Vec<u32> = Vec::new();
+    let mut face_edges = vec![[0u32; 3]; nf];
+    let mut face_slot = vec![0u8; nf];
+    let mut edge_face: Vec<u32> = Vec::with_capacity(corners.len());
+    for (i, &(a, b, f)) in corners.iter().enumerate() {
+        if i == 0 || (corners[i - 1].0, corners[i - 1].1) != (a, b) {
+            edge_start.push(edge_face.len() as u32);
+        }
+        let e = edge_start.len() as u32 - 1;
+        edge_face.push(f);
+        let k = &mut face_slot[f as usize];
+        face_edges[f as usize][*k as usize] = e;
+        *k += 1;
+    }
+    edge_start.push(edge_face.len() as u32);
+    let ne = edge_start.len() - 1;
+    let mut g = Gluing {
+        face_edges,
+        edge_start,
+        edge_face,
+        removed: vec![false; nf],
+        live: Vec::new(),
+    };
+    g.live = (0..ne)
+        .map(|e| g.edge_start[e + 1] - g.edge_start[e])
+        .collect();
+    let mut lids = 0;
+    for t in 0..nf {
+        let te = g.face_edges[t];
+        if te.iter().any(|&e| g.live[e as usize] != 3) {
+            continue;
+        }
+        let mut tb = te;
+        tb.sort_unstable();
+        // The pocket: grown from a face on t's first edge. The body: the other face there.
+        let others: Vec<usize> = g
+            .faces_of(te[0])
+            .iter()
+            .map(|&f| f as usize)
+            .filter(|&f| f != t)
+            .collect();
+        let is_lid = (0..2).any(|i| {
+            let (pocket, body) = (others[i], others[1 - i]);
+            match g.patch(pocket, MAX_POCKET_FACES) {
+                Patch::Closed { faces, border } if border == tb && !faces.contains(&body) => {
+                    matches!(g.patch(body, MAX_POCKET_FACES), Patch::Large)
+                }
+                _ => false,
+            }
+        });
+        if is_lid {
+            g.removed[t] = true;
+            for &e in &te {
+                g.live[e as usize] -= 1;
+            }
+            lids += 1;
+        }
+    }
+    if lids > 0 {
+        let mut f = 0;
+        tris.retain(|_| {
+            f += 1;
+            !g.removed[f - 1]
+        });
+    }
+    lids
+}
+
+/// The face-edge incidences of [`drop_pocket_lids`], with the faces removed so far.
+struct Gluing {
+    face_edges: Vec<[u32; 3]>,
+    /// Offsets of each edge's faces in `edge_face`.
+    edge_start: Vec<u32>,
+    edge_face: Vec<u32>,
+    removed: Vec<bool>,
+    /// Faces left on each edge.
+    live: Vec<u32>,
+}
+
+/// What a patch grown across edges on two faces is ([`Gluing::patch`]).
+enum Patch {
+    /// It stops within the limit at edges on three or more faces, each reached once
+    /// (`border`, sorted).
+    Closed { faces: Vec<usize>, border: Vec<u32> },
+    /// It stops within the limit, but at a boundary edge (one face) or at an edge on three
+    /// or more faces reached twice.
+    Open,
+    /// It has more faces than the limit.
+    Large,
+}
+
+impl Gluing {
+    fn faces_of(&self, e: u32) -> &[u32] {
+        &self.edge_face
+            [self.edge_start[e as usize] as usize..self.edge_start[e as usize + 1] as usize]
+    }
+
+    /// The patch grown breadth-first from face `seed` across edges on two live faces, up to
+    /// `limit` faces.
+    fn patch(&self, seed: usize, limit: usize) -> Patch {
+        let mut faces = vec![seed];
+        let mut border = Vec::new();
+        let mut open = false;
+        let mut i = 0;
+        while i < faces.len() {
+            let f = faces[i];
+            i += 1;
+            for &e in &self.face_edges[f] {
+                match self.live[e as usize] {
+                    0 | 1 => open = true,
+                    2 => {
+                        for &h in self.faces_of(e) {
+                            let h = h as usize;
+                            if h != f && !self.removed[h] && !faces.contains(&h) {
+                                if faces.len() == limit {
+                                    return Patch::Large;
+                                }
+                                faces.push(h);
+                            }
+                        }
+                    }
+                    _ => border.push(e),
+                }
+            }
+        }
+        border.sort_unstable();
+        let n = border.len();
+        border.dedup();
+        if !open && border.len() == n {
+            Patch::Closed { faces, border }
+        } else {
+            // An edge reached twice: the patch is not a disc bounded by single edges.
+            Patch::Open
+        }
+    }
 }
 
 /// The triangles of `mesh`'s faces: polygons fanned from their first corner, except that a
@@ -510,6 +699,80 @@ mod tests {
         let mut m2 = m.clone();
         m2.positions[4].y = -0.0;
         assert_eq!(weld_seams(&m2.positions, &m2.triangulate().0).1, 2);
+    }
+
+    /// A sphere of `levels` midpoint splits of the icosahedron with a pyramid glued onto
+    /// face 0 whose base (face 0) was left in place, its sides traversing the base's edges
+    /// as face 0 does (`reversed`: the other way); `fins`: instead of the pyramid, a single
+    /// triangle on each edge of face 0.
+    fn glued_pocket(levels: u32, reversed: bool, fins: bool) -> Mesh {
+        let mut m = generate::icosphere(levels);
+        let [a, b, c]: [u32; 3] = m.face(0).try_into().unwrap();
+        let [pa, pb, pc] = [a, b, c].map(|v| m.positions[v as usize]);
+        let n = (pb - pa).cross(pc - pa).normalize();
+        let centre = (pa + pb + pc) / 3.0;
+        let edges = [(a, b), (b, c), (c, a)];
+        for (i, &(u, w)) in edges.iter().enumerate() {
+            let apex = if fins {
+                // A fin standing on its edge, leaning away from face 0.
+                let mid = (m.positions[u as usize] + m.positions[w as usize]) / 2.0;
+                mid + 0.3 * n + 0.2 * (mid - centre) + 0.01 * i as f64 * DVec3::X
+            } else {
+                centre + 0.2 * n
+            };
+            let k = if fins || i == 0 {
+                m.positions.push(apex);
+                (m.positions.len() - 1) as u32
+            } else {
+                (m.positions.len() - 1) as u32
+            };
+            if reversed {
+                m.push_face(&[w, u, k]);
+            } else {
+                m.push_face(&[u, w, k]);
+            }
+        }
+        m
+    }
+
+    /// A pocket's lid (a face whose three edges each carry the pocket's side and the body)
+    /// is removed, so nothing is cut; with the sides the other way round they are flipped
+    /// too. Three fins on a face's edges close no pocket, and on a body of fewer than
+    /// `MAX_POCKET_FACES` faces the pocket is not told from the body: the edges are cut.
+    #[test]
+    fn pocket_lids_are_removed() {
+        for reversed in [false, true] {
+            let m = glued_pocket(2, reversed, false);
+            assert_eq!(Topology::build(&m).non_manifold_edges().len(), 3);
+            let (p, t, r) = prepare(&m, true).unwrap();
+            assert_eq!(r.lid_faces, 1, "reversed {reversed}");
+            assert_eq!(t.len(), 322);
+            assert_eq!((r.non_manifold_edges, r.added_vertices), (0, 0));
+            assert_eq!(r.flipped_faces, if reversed { 3 } else { 0 });
+            let out = Mesh::from_triangles(p, &t);
+            let topo = Topology::build(&out);
+            assert!(require_manifold(&topo).is_ok());
+            assert_eq!(boundary_edges(&topo), 0, "a closed surface");
+            assert!(r
+                .repair_summary()
+                .unwrap()
+                .starts_with("removed 1 face(s) closing a pocket glued onto the surface"));
+            // Without repair, the lid's edges are named as non-manifold.
+            assert!(prepare(&m, false).is_err());
+        }
+        for (levels, fins, faces) in [(2, true, 323), (0, true, 23), (0, false, 23)] {
+            let m = glued_pocket(levels, false, fins);
+            let (p, t, r) = prepare(&m, true).unwrap();
+            assert_eq!(
+                (r.lid_faces, r.non_manifold_edges, t.len()),
+                (0, 3, faces),
+                "levels {levels} fins {fins}"
+            );
+            assert!(require_manifold(&Topology::build(&Mesh::from_triangles(p, &t))).is_ok());
+        }
+        let mut tris = glued_pocket(2, false, false).triangulate().0;
+        assert_eq!(drop_pocket_lids(&mut tris), 1);
+        assert_eq!(drop_pocket_lids(&mut tris), 0, "nothing left to remove");
     }
 
     /// The repair's summary names what it changed.
