@@ -775,6 +775,77 @@ mod tests {
         assert_eq!(drop_pocket_lids(&mut tris), 0, "nothing left to remove");
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(300))]
+
+        /// A glued pocket with random triangles added among the vertices around its lid
+        /// (more pockets, fins, lids over lids), and random soups over few vertices: the
+        /// repair never panics and always ends with an oriented 2-manifold, and each lid it
+        /// removes turns exactly its three edges manifold.
+        #[test]
+        fn repair_of_random_gluings_is_manifold(
+            extra in proptest::collection::vec([0usize..16, 0usize..16, 0usize..16], 0..24),
+            reversed in proptest::bool::ANY,
+            soup in proptest::bool::ANY,
+        ) {
+            let mut m = if soup {
+                let p = (0..16).map(|i| DVec3::new(i as f64, (i * i % 7) as f64, (i % 3) as f64));
+                Mesh::from_faces(p.collect(), Vec::<Vec<u32>>::new())
+            } else {
+                glued_pocket(2, reversed, false)
+            };
+            // The vertices of the first faces (the lid's among them) and the apex.
+            let mut around: Vec<u32> = Vec::new();
+            for f in 0..m.num_faces() {
+                for &v in m.face(f) {
+                    if !around.contains(&v) && around.len() < 15 {
+                        around.push(v);
+                    }
+                }
+            }
+            around.push((m.positions.len() - 1) as u32);
+            if soup {
+                around = (0..16).collect();
+            }
+            for t in &extra {
+                let [a, b, c] = t.map(|i| around[i.min(around.len() - 1)]);
+                m.push_face(&[a, b, c]);
+            }
+            if m.num_faces() == 0 {
+                return Ok(());
+            }
+            let (p, t, r) = prepare(&m, true).unwrap();
+            if !t.is_empty() {
+                let topo = Topology::build(&Mesh::from_triangles(p, &t));
+                proptest::prop_assert!(require_manifold(&topo).is_ok(), "{:?}", r);
+            }
+            let mut kept: Vec<[u32; 3]> = Vec::new();
+            let mut seen = std::collections::HashSet::new();
+            for t in m.triangulate().0 {
+                let mut s = t;
+                s.sort_unstable();
+                if s[0] != s[1] && s[1] != s[2] && seen.insert(s) {
+                    kept.push(t);
+                }
+            }
+            let nm = |tris: &[[u32; 3]]| {
+                let mut count = std::collections::HashMap::new();
+                for t in tris {
+                    for i in 0..3 {
+                        let (a, b) = (t[i], t[(i + 1) % 3]);
+                        *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+                    }
+                }
+                count.values().filter(|&&c| c > 2).count()
+            };
+            let before = nm(&kept);
+            let n = kept.len();
+            let removed = drop_pocket_lids(&mut kept);
+            proptest::prop_assert_eq!(kept.len() + removed, n);
+            proptest::prop_assert_eq!(nm(&kept) + 3 * removed, before);
+        }
+    }
+
     /// The repair's summary names what it changed.
     #[test]
     fn repair_summary_names_the_changes() {
