@@ -241,6 +241,30 @@ fn corpus_meshes_remesh() {
     }
 }
 
+/// The beetle's repair removes the nine lids of the parts glued onto its body (a mirror,
+/// headlights: pockets of one to three faces over a triangle left in place), so that only
+/// 20 of its 47 non-manifold edges are cut, and the remesh over 200 base faces folds less
+/// than with the lids cut apart (8 flipped faces at 3 levels, 4 since).
+#[test]
+fn corpus_beetle_pocket_lids_are_removed() {
+    let Some(input) = corpus("beetle.obj") else {
+        return;
+    };
+    let (_, _, r) = subwave::remesh::repair::prepare(&input, true).unwrap();
+    assert_eq!((r.lid_faces, r.non_manifold_edges), (9, 20), "{r:?}");
+    let o = RemeshOptions {
+        repair: true,
+        ..opts(3, 200)
+    };
+    let m = remesh(&input, &o).unwrap();
+    eprintln!("beetle 3 levels over 200: {:?}", m.quality);
+    assert!(
+        m.quality.flipped + m.quality.degenerate <= 5,
+        "{:?}",
+        m.quality
+    );
+}
+
 /// The bunny's five holes stay holes and the genus and component count are kept.
 #[test]
 fn corpus_bunny_keeps_its_holes() {
