@@ -17,12 +17,13 @@
 //! vertex stay apart; a weld that makes an edge non-manifold (three coincident rims) is cut
 //! again by the repair above.
 //!
-//! Then it drops *pocket lids* ([`drop_pocket_lids`]): a triangle each of whose edges is on
-//! exactly three faces, and on the other side of which a small patch of faces closes a
-//! pocket over the same three edges. Modellers glue a part (a mirror, a handle) onto a body
-//! by adding its sides over a triangle of the body and leaving that triangle in place; it is
-//! then inside the solid, where cutting its edges would leave a pocket of three sheets
-//! whose resampled triangles the remesher folds (the beetle has nine such lids).
+//! After the weld and before the cut, it drops *pocket lids* ([`drop_pocket_lids`]): a
+//! triangle each of whose edges is on exactly three faces, on one side of which a small
+//! patch of faces closes a pocket over the same three edges while a larger surface goes on
+//! on the other. Modellers glue a part (a mirror, a headlight) onto a body by adding its
+//! sides over a triangle of the body and leaving that triangle in place; it is then inside
+//! the solid, and cutting its edges would leave three sheets meeting there, which the
+//! remesher folds (the beetle has nine such lids).
 
 use std::collections::VecDeque;
 
@@ -330,8 +331,9 @@ pub fn drop_pocket_lids(tris: &mut Vec<[u32; 3]>) -> usize {
             .faces_of(te[0])
             .iter()
             .map(|&f| f as usize)
-            .filter(|&f| f != t)
+            .filter(|&f| f != t && !g.removed[f])
             .collect();
+        debug_assert_eq!(others.len(), 2, "three live faces on the edge");
         let is_lid = (0..2).any(|i| {
             let (pocket, body) = (others[i], others[1 - i]);
             match g.patch(pocket, MAX_POCKET_FACES) {
