@@ -17,7 +17,7 @@
 //! vertex stay apart; a weld that makes an edge non-manifold (three coincident rims) is cut
 //! again by the repair above.
 //!
-//! After the weld and before the cut, it drops *pocket lids* ([`drop_pocket_lids`]): a
+//! After the weld and before the cut, it drops *pocket lids* ([`pocket_lids`]): a
 //! triangle each of whose edges is on exactly three faces, on one side of which a small
 //! patch of faces closes a pocket over the same three edges while a larger surface goes on
 //! on the other. Modellers glue a part (a mirror, a headlight) onto a body by adding its
@@ -56,7 +56,7 @@ pub struct RepairReport {
     /// Vertices welded into a coincident one to close duplicated seams (only with repair).
     pub welded_vertices: usize,
     /// Faces removed as the lids of pockets glued onto the surface (only with repair,
-    /// [`drop_pocket_lids`]).
+    /// [`pocket_lids`]).
     pub lid_faces: usize,
     /// Without repair: vertices that the repair would weld (the ends of boundary edges that
     /// coincide with other boundary edges), left apart; 0 with repair.
@@ -211,9 +211,6 @@ pub fn prepare(mesh: &Mesh, repair: bool) -> Result<(Vec<DVec3>, Vec<[u32; 3]>, 
     } else {
         report.seam_vertices = seam_vertices;
     }
-    if repair {
-        report.lid_faces = drop_pocket_lids(&mut kept);
-    }
     // Drop unreferenced vertices.
     let mut map = vec![u32::MAX; mesh.positions.len()];
     let mut positions = Vec::new();
@@ -230,9 +227,24 @@ pub fn prepare(mesh: &Mesh, repair: bool) -> Result<(Vec<DVec3>, Vec<[u32; 3]>, 
     }
     // Welded vertices are on no face now; they are counted apart.
     report.unreferenced_vertices = mesh.positions.len() - positions.len() - report.welded_vertices;
-    let m = Mesh::from_triangles(positions, &kept);
-    let topo = Topology::build(&m);
-    let nm_edges = topo.non_manifold_edges();
+    let mut m = Mesh::from_triangles(positions, &kept);
+    let mut topo = Topology::build(&m);
+    let mut nm_edges = topo.non_manifold_edges();
+    if repair && !nm_edges.is_empty() {
+        let lids = pocket_lids(&topo);
+        if !lids.is_empty() {
+            // A lid's vertices stay on the faces around its edges: none becomes unreferenced.
+            report.lid_faces = lids.len();
+            let mut f = 0;
+            kept.retain(|_| {
+                f += 1;
+                lids.binary_search(&(f as u32 - 1)).is_err()
+            });
+            m = Mesh::from_triangles(std::mem::take(&mut m.positions), &kept);
+            topo = Topology::build(&m);
+            nm_edges = topo.non_manifold_edges();
+        }
+    }
     let nm_vertices = topo.non_manifold_vertices();
     if !repair {
         if !nm_edges.is_empty() || !nm_vertices.is_empty() {
@@ -258,13 +270,14 @@ pub fn prepare(mesh: &Mesh, repair: bool) -> Result<(Vec<DVec3>, Vec<[u32; 3]>, 
     Ok((positions, tris, report))
 }
 
-/// Largest pocket (in faces) whose lid [`drop_pocket_lids`] removes, and the number of
+/// Largest pocket (in faces) whose lid [`pocket_lids`] removes, and the number of
 /// faces the surface on the lid's other side must exceed: a part glued onto a body is a
 /// few faces (the beetle's are 3 or 1).
 pub const MAX_POCKET_FACES: usize = 64;
 
-/// Removes the *lids of pockets* from `tris`: a triangle `t` each of whose three edges is on
-/// exactly three of the (remaining) triangles, such that
+/// The *lids of pockets* among the faces of `topo` (sorted face indices): a triangle `t`
+/// each of whose three edges is on exactly three faces (not counting lids found before),
+/// such that
 /// - a patch of at most [`MAX_POCKET_FACES`] other triangles, connected across edges on two
 ///   triangles, is bounded by exactly `t`'s three edges (the pocket: with `t` a closed
 ///   surface), and
@@ -274,61 +287,30 @@ pub const MAX_POCKET_FACES: usize = 64;
 ///   are cut as any non-manifold edge).
 ///
 /// Without `t` each of its edges is on two faces, and the pocket's sides continue the
-/// body's surface. Lids are tested and removed one at a time, in index order, so that each
-/// removal is seen by the next tests; the order of the other triangles is kept. Returns the
-/// number removed.
+/// body's surface. Faces are tested in index order, each test seeing the lids found before
+/// it as removed.
 ///
-/// Preconditions: no triangle repeats a vertex; no two triangles have the same vertex set
-/// (as [`prepare`] makes them).
-pub fn drop_pocket_lids(tris: &mut Vec<[u32; 3]>) -> usize {
-    let nf = tris.len();
-    // Edges as (smaller vertex, larger vertex, face), sorted: each edge a run.
-    let mut corners: Vec<(u32, u32, u32)> = Vec::with_capacity(3 * nf);
-    for (f, t) in tris.iter().enumerate() {
-        for i in 0..3 {
-            let (a, b) = (t[i], t[(i + 1) % 3]);
-            corners.push((a.min(b), a.max(b), f as u32));
-        }
-    }
-    corners.sort_unstable();
-    // Edge ids, the faces of each edge (offsets into `edge_face`) and each face's edges.
-    let mut edge_start: Vec<u32> = Vec::new();
-    let mut face_edges = vec![[0u32; 3]; nf];
-    let mut face_slot = vec![0u8; nf];
-    let mut edge_face: Vec<u32> = Vec::with_capacity(corners.len());
-    for (i, &(a, b, f)) in corners.iter().enumerate() {
-        if i == 0 || (corners[i - 1].0, corners[i - 1].1) != (a, b) {
-            edge_start.push(edge_face.len() as u32);
-        }
-        let e = edge_start.len() as u32 - 1;
-        edge_face.push(f);
-        let k = &mut face_slot[f as usize];
-        face_edges[f as usize][*k as usize] = e;
-        *k += 1;
-    }
-    edge_start.push(edge_face.len() as u32);
-    let ne = edge_start.len() - 1;
+/// Preconditions: `topo` is of triangles, none repeating a vertex and no two on the same
+/// vertex set (as [`prepare`] makes them).
+pub fn pocket_lids(topo: &Topology) -> Vec<u32> {
     let mut g = Gluing {
-        face_edges,
-        edge_start,
-        edge_face,
-        removed: vec![false; nf],
-        live: Vec::new(),
+        topo,
+        removed: vec![false; topo.num_faces()],
+        live: (0..topo.num_edges())
+            .map(|e| topo.edge_faces(e).len() as u32)
+            .collect(),
     };
-    g.live = (0..ne)
-        .map(|e| g.edge_start[e + 1] - g.edge_start[e])
-        .collect();
-    let mut lids = 0;
-    for t in 0..nf {
-        let te = g.face_edges[t];
-        if te.iter().any(|&e| g.live[e as usize] != 3) {
+    let mut lids = Vec::new();
+    for t in 0..topo.num_faces() {
+        let te = topo.face_edges(t);
+        if te.len() != 3 || te.iter().any(|&e| g.live[e as usize] != 3) {
             continue;
         }
-        let mut tb = te;
+        let mut tb = te.to_vec();
         tb.sort_unstable();
         // The pocket: grown from a face on t's first edge. The body: the other face there.
-        let others: Vec<usize> = g
-            .faces_of(te[0])
+        let others: Vec<usize> = topo
+            .edge_faces(te[0] as usize)
             .iter()
             .map(|&f| f as usize)
             .filter(|&f| f != t && !g.removed[f])
@@ -345,28 +327,18 @@ pub fn drop_pocket_lids(tris: &mut Vec<[u32; 3]>) -> usize {
         });
         if is_lid {
             g.removed[t] = true;
-            for &e in &te {
+            for &e in te {
                 g.live[e as usize] -= 1;
             }
-            lids += 1;
+            lids.push(t as u32);
         }
-    }
-    if lids > 0 {
-        let mut f = 0;
-        tris.retain(|_| {
-            f += 1;
-            !g.removed[f - 1]
-        });
     }
     lids
 }
 
-/// The face-edge incidences of [`drop_pocket_lids`], with the faces removed so far.
-struct Gluing {
-    face_edges: Vec<[u32; 3]>,
-    /// Offsets of each edge's faces in `edge_face`.
-    edge_start: Vec<u32>,
-    edge_face: Vec<u32>,
+/// The faces of [`pocket_lids`]'s topology, with the lids found so far removed.
+struct Gluing<'a> {
+    topo: &'a Topology,
     removed: Vec<bool>,
     /// Faces left on each edge.
     live: Vec<u32>,
@@ -384,12 +356,7 @@ enum Patch {
     Large,
 }
 
-impl Gluing {
-    fn faces_of(&self, e: u32) -> &[u32] {
-        &self.edge_face
-            [self.edge_start[e as usize] as usize..self.edge_start[e as usize + 1] as usize]
-    }
-
+impl Gluing<'_> {
     /// The patch grown breadth-first from face `seed` across edges on two live faces, up to
     /// `limit` faces.
     fn patch(&self, seed: usize, limit: usize) -> Patch {
@@ -400,11 +367,11 @@ impl Gluing {
         while i < faces.len() {
             let f = faces[i];
             i += 1;
-            for &e in &self.face_edges[f] {
+            for &e in self.topo.face_edges(f) {
                 match self.live[e as usize] {
                     0 | 1 => open = true,
                     2 => {
-                        for &h in self.faces_of(e) {
+                        for &h in self.topo.edge_faces(e as usize) {
                             let h = h as usize;
                             if h != f && !self.removed[h] && !faces.contains(&h) {
                                 if faces.len() == limit {
@@ -424,7 +391,7 @@ impl Gluing {
         if !open && border.len() == n {
             Patch::Closed { faces, border }
         } else {
-            // An edge reached twice: the patch is not a disc bounded by single edges.
+            // A boundary edge, or an edge reached twice: not a disc bounded by single edges.
             Patch::Open
         }
     }
@@ -772,9 +739,11 @@ mod tests {
             );
             assert!(require_manifold(&Topology::build(&Mesh::from_triangles(p, &t))).is_ok());
         }
-        let mut tris = glued_pocket(2, false, false).triangulate().0;
-        assert_eq!(drop_pocket_lids(&mut tris), 1);
-        assert_eq!(drop_pocket_lids(&mut tris), 0, "nothing left to remove");
+        let m = glued_pocket(2, false, false);
+        assert_eq!(pocket_lids(&Topology::build(&m)), [0]);
+        let (p, t, _) = prepare(&m, true).unwrap();
+        let repaired = Topology::build(&Mesh::from_triangles(p, &t));
+        assert!(pocket_lids(&repaired).is_empty(), "nothing left to remove");
     }
 
     proptest::proptest! {
@@ -842,7 +811,13 @@ mod tests {
             };
             let before = nm(&kept);
             let n = kept.len();
-            let removed = drop_pocket_lids(&mut kept);
+            let lids = pocket_lids(&Topology::build(&Mesh::from_triangles(m.positions.clone(), &kept)));
+            let removed = lids.len();
+            let mut f = 0;
+            kept.retain(|_| {
+                f += 1;
+                !lids.contains(&(f as u32 - 1))
+            });
             proptest::prop_assert_eq!(kept.len() + removed, n);
             proptest::prop_assert_eq!(nm(&kept) + 3 * removed, before);
         }
