@@ -418,3 +418,32 @@ fn folds_left_over_the_default_base_are_remeshed_finer() {
     );
     assert!(stderr.contains("the try that left the fewest"), "{stderr}");
 }
+
+/// Folds do not fall steadily with the base faces: the beetle (repaired) at 3 levels leaves
+/// 4, 6, 5 and no flipped faces over 200, 400, 800 and 1,600 base faces. The search goes on
+/// past the tries that leave no fewer (the finest level stays small) and keeps the clean
+/// remesh; the others are listed by base faces.
+#[test]
+fn the_fold_search_goes_on_past_tries_that_leave_no_fewer() {
+    let Some(remesh) = corpus_remesh("beetle.obj", &["--levels", "3", "--samples", "20000"]) else {
+        return;
+    };
+    let (v, stderr) = remesh(None);
+    assert_eq!(
+        (v["flipped"].as_u64(), v["degenerate"].as_u64()),
+        (Some(0), Some(0)),
+        "{v}"
+    );
+    let refolded = v["refolded"].as_array().unwrap();
+    let bases: Vec<u64> = refolded
+        .iter()
+        .map(|r| r["base_faces"].as_u64().unwrap())
+        .collect();
+    assert_eq!(bases, [200, 400, 800], "{v}");
+    // A try after one that left no fewer (400 after 200) was made and reported.
+    let folds =
+        |r: &serde_json::Value| r["flipped"].as_u64().unwrap() + r["degenerate"].as_u64().unwrap();
+    assert!(folds(&refolded[1]) >= folds(&refolded[0]), "{v}");
+    assert!(refolded.iter().all(|r| folds(r) > 0), "{v}");
+    assert!(stderr.contains("remeshed over 1600 base faces"), "{stderr}");
+}

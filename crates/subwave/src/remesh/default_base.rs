@@ -15,8 +15,10 @@
 //! - one that leaves flipped or degenerate faces is redone over [`finer_base_for_folds`]
 //!   base faces (twice as many, past [`MAX_DEFAULT_BASE_FACES`] while the finest level keeps
 //!   at most [`MAX_FOLD_FACES`] faces and the base no more than the input's triangles) while
-//!   the new one leaves strictly fewer; the one with the fewest is kept (the first of
-//!   equals).
+//!   the best so far leaves any, and the new one left strictly fewer or the next finest level
+//!   keeps at most [`MAX_FOLD_FACES`] faces (folds do not fall steadily with the base faces:
+//!   the beetle at 3 levels leaves 4, 6, 5 and none over 200, 400, 800 and 1,600); the one
+//!   with the fewest is kept (the first of equals).
 //!
 //! The codec's [`crate::codec::prepare`] takes the same base steps for a remesh that misses
 //! part of the input (then one level finer), and does not retry folds: it repairs the folds
@@ -72,9 +74,16 @@ pub fn finer_base_for_folds(base_faces: usize, levels: u32, input_faces: usize) 
         if b > MAX_FOLD_BASE_FACES || b > input_faces {
             return None;
         }
-        let faces = 4usize.checked_pow(levels).and_then(|n| n.checked_mul(b))?;
-        (faces <= MAX_FOLD_FACES).then_some(b)
+        (fold_faces(b, levels)? <= MAX_FOLD_FACES).then_some(b)
     })
+}
+
+/// Faces of the finest level of a triangle remesh over `base_faces` at `levels` (`None` past
+/// `usize`).
+fn fold_faces(base_faces: usize, levels: u32) -> Option<usize> {
+    4usize
+        .checked_pow(levels)
+        .and_then(|n| n.checked_mul(base_faces))
 }
 
 /// A remesh that missed part of the input before the one kept (JSON keys `base_faces`,
@@ -122,7 +131,8 @@ pub struct Searched<O> {
     pub base_faces: usize,
     /// The remeshes that missed part of the input, in order.
     pub missed: Vec<Missed>,
-    /// The remeshes that left more flipped or degenerate faces than the one kept, in order.
+    /// The remeshes that left more flipped or degenerate faces than the one kept (or as many,
+    /// over more base faces), by base faces.
     pub refolded: Vec<Refolded>,
 }
 
@@ -173,32 +183,42 @@ pub fn search<O: Outcome, E>(
                 refolded,
             });
         }
-        if let Some((b, b_base)) = best.take() {
-            if folds(&o) >= folds(&b) {
-                // No fewer than the best: the best is kept.
-                refolded.push(record(&o, base));
-                return Ok(Searched {
-                    kept: b,
-                    base_faces: b_base,
-                    missed,
-                    refolded,
-                });
+        let next = finer_base_for_folds(base, levels, input_faces);
+        // Whether this remesh leaves fewer folds than the best so far (kept: the first of
+        // equals).
+        let improved = match &best {
+            Some((b, _)) => folds(&o) < folds(b),
+            None => true,
+        };
+        if improved {
+            if let Some((b, b_base)) = best.take() {
+                refolded.push(record(&b, b_base));
             }
-            refolded.push(record(&b, b_base));
+            best = Some((o, base));
+        } else {
+            refolded.push(record(&o, base));
         }
-        match finer_base_for_folds(base, levels, input_faces).filter(|_| searching && folds(&o) > 0)
-        {
+        let (kept, kept_base) = best.take().expect("set above");
+        // Folds do not fall steadily with the base faces (the beetle at 3 levels: 4, 6, 5 and
+        // none over 200, 400, 800 and 1,600): past a try that left no fewer, the search goes
+        // on while the next finest level keeps at most MAX_FOLD_FACES faces.
+        let go_on = |b: &usize| {
+            folds(&kept) > 0
+                && (improved || fold_faces(*b, levels).is_some_and(|n| n <= MAX_FOLD_FACES))
+        };
+        match next.filter(go_on) {
             Some(b) => {
-                best = Some((o, base));
+                best = Some((kept, kept_base));
                 base = b;
             }
             None => {
+                refolded.sort_by_key(|r| r.base_faces);
                 return Ok(Searched {
-                    kept: o,
-                    base_faces: base,
+                    kept,
+                    base_faces: kept_base,
                     missed,
                     refolded,
-                })
+                });
             }
         }
     }
@@ -278,11 +298,40 @@ mod tests {
         assert_eq!((base, tried), (800, vec![200, 400, 800]));
         let bases: Vec<usize> = s.refolded.iter().map(|r| r.base_faces).collect();
         assert_eq!(bases, [200, 400]);
-        // Beetle: no fewer over 400 (8 + 1 against 8): the 200 is kept.
-        let (base, tried, s) = run(true, &[(200, Fake(8, 0, false)), (400, Fake(8, 1, false))]);
+        // Beetle at 3 levels: 4, 6, 5 and none over 200, 400, 800 and 1,600. Past the tries
+        // that leave no fewer, the search goes on while the finest level stays small.
+        let beetle = [
+            (200, Fake(4, 0, false)),
+            (400, Fake(6, 0, false)),
+            (800, Fake(5, 0, false)),
+            (1600, Fake(0, 0, false)),
+        ];
+        let (base, tried, s) = run(true, &beetle);
+        assert_eq!((base, tried), (1600, vec![200, 400, 800, 1600]));
+        assert_eq!(s.kept, Fake(0, 0, false));
+        let bases: Vec<usize> = s.refolded.iter().map(|r| r.base_faces).collect();
+        assert_eq!(bases, [200, 400, 800]);
+        // At 5 levels 800 base faces would make 819,200: after 400 left no fewer, the 200
+        // is kept.
+        let (base, tried, s) = run_levels(5, true, &beetle);
         assert_eq!((base, tried), (200, vec![200, 400]));
-        assert_eq!(s.kept, Fake(8, 0, false));
+        assert_eq!(s.kept, Fake(4, 0, false));
         assert_eq!(s.refolded[0].base_faces, 400);
+        // At 3 levels the ladder ends at 3,200 base faces: the fewest is kept, the first of
+        // equals.
+        let (base, tried, s) = run(
+            true,
+            &[
+                (200, Fake(3, 0, false)),
+                (400, Fake(2, 0, false)),
+                (800, Fake(4, 0, false)),
+                (1600, Fake(1, 1, false)),
+                (3200, Fake(5, 0, false)),
+            ],
+        );
+        assert_eq!((base, tried), (400, vec![200, 400, 800, 1600, 3200]));
+        assert_eq!(s.kept, Fake(2, 0, false));
+        assert_eq!(s.refolded.len(), 4);
         // Past the largest default base while the finest level stays small: 3 levels over
         // 3,200 base faces make 204,800 faces, over 6,400 too many.
         let steps = [
@@ -336,6 +385,7 @@ mod tests {
                 (400, Fake(0, 0, true)),
                 (800, Fake(1, 0, false)),
                 (1600, Fake(1, 0, false)),
+                (3200, Fake(2, 0, false)),
             ],
         );
         assert_eq!(base, 800);
