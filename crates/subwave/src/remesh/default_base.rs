@@ -15,10 +15,10 @@
 //! - one that leaves flipped or degenerate faces is redone over [`finer_base_for_folds`]
 //!   base faces (twice as many, past [`MAX_DEFAULT_BASE_FACES`] while the finest level keeps
 //!   at most [`MAX_FOLD_FACES`] faces and the base no more than the input's triangles) while
-//!   the best so far leaves any, and the new one left strictly fewer or the next finest level
-//!   keeps at most [`MAX_FOLD_FACES`] faces (folds do not fall steadily with the base faces:
-//!   the beetle at 3 levels leaves 4, 6, 5 and none over 200, 400, 800 and 1,600); the one
-//!   with the fewest is kept (the first of equals).
+//!   the best so far leaves any, and the last try left strictly fewer or the next try's
+//!   finest level keeps at most [`MAX_FOLD_FACES`] faces (folds do not fall steadily with
+//!   the base faces: the beetle at 3 levels leaves 4, 6, 5 and none over 200, 400, 800 and
+//!   1,600); the one with the fewest is kept (the first of equals).
 //!
 //! The codec's [`crate::codec::prepare`] takes the same base steps for a remesh that misses
 //! part of the input (then one level finer), and does not retry folds: it repairs the folds
