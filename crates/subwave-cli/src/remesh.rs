@@ -45,8 +45,9 @@ pub struct RemeshArgs {
     pub levels: u32,
     /// Target number of base triangles [default: 200, raised to 400, then 800, where the
     /// remesh over fewer misses part of the input by over 3% of the diagonal, or leaves
-    /// flipped or degenerate faces that more base faces reduce (for those up to 3200 and the
-    /// input's triangles, while the remesh keeps at most 2^18 faces); a given number is kept].
+    /// flipped or degenerate faces (for those up to 3200 and the input's triangles, while the
+    /// remesh keeps at most 2^18 faces; the try with the fewest is kept); a given number is
+    /// kept].
     #[arg(long, value_name = "N",
           value_parser = clap::value_parser!(u64).range(1..=10_000_000))]
     pub base_faces: Option<u64>,
