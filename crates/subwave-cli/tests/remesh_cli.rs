@@ -446,4 +446,10 @@ fn the_fold_search_goes_on_past_tries_that_leave_no_fewer() {
     assert!(folds(&refolded[1]) >= folds(&refolded[0]), "{v}");
     assert!(refolded.iter().all(|r| folds(r) > 0), "{v}");
     assert!(stderr.contains("remeshed over 1600 base faces"), "{stderr}");
+    // The whole search's time, four tries, is reported beside the kept one's.
+    assert_eq!(v["tries"].as_u64(), Some(4), "{v}");
+    assert!(
+        v["search_ms"].as_f64().unwrap() > v["time_ms"].as_f64().unwrap(),
+        "{v}"
+    );
 }
