@@ -252,7 +252,8 @@ pub struct CompressBaseArgs {
     pub bits: u32,
     /// Code a mesh that is not a consistently oriented 2-manifold after repairing it as
     /// `remesh --repair` does (a manifold mesh is coded as it is): duplicated seams welded
-    /// (boundary edges lying exactly on other boundary edges), non-manifold vertices and
+    /// (boundary edges lying exactly on other boundary edges), slits stitched (boundary edges
+    /// split at T-junctions where that closes a crack), pocket lids removed, non-manifold vertices and
     /// edges split (the decoded mesh has the split vertices as separate vertices at the same
     /// positions), orientations made
     /// consistent, polygons fanned into triangles, degenerate faces and unreferenced vertices

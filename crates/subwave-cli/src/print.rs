@@ -195,14 +195,19 @@ pub fn report_table(r: &MeshReport) -> Table {
         "inconsistently oriented edges",
         count(r.inconsistent_orientation_edges),
     );
-    t.row(
-        "duplicated seam vertices",
-        if r.seam_vertices > 0 {
-            format!("{} (remesh --repair welds them)", count(r.seam_vertices))
+    // What the repair would fix, with how.
+    let fixable = |n: usize, how: &str| {
+        if n > 0 {
+            format!("{} (remesh --repair {how} them)", count(n))
         } else {
             count(0)
-        },
+        }
+    };
+    t.row(
+        "duplicated seam vertices",
+        fixable(r.seam_vertices, "welds"),
     );
+    t.row("slit T-junctions", fixable(r.slit_vertices, "stitches"));
     t.row("crease edges", count(r.crease_edges));
     t.row(
         "vertex tags",

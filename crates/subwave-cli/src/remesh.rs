@@ -59,9 +59,10 @@ pub struct RemeshArgs {
     #[arg(long, value_name = "DEG", value_parser = crate::parse_angle)]
     pub sharp_angle: Option<f64>,
     /// Repair the input instead of failing: weld duplicated seams (boundary edges lying
-    /// exactly on other boundary edges, as in a model tessellated patch by patch), then cut
-    /// non-manifold edges, split non-manifold vertices and orient each component
-    /// consistently.
+    /// exactly on other boundary edges, as in a model tessellated patch by patch), stitch
+    /// slits (boundary edges split at the T-junction vertices of another boundary chain a
+    /// hair away, where that closes the crack), remove pocket lids, then cut non-manifold
+    /// edges, split non-manifold vertices and orient each component consistently.
     #[arg(long)]
     pub repair: bool,
     /// The method.
@@ -115,8 +116,8 @@ pub struct BenchRemeshArgs {
     /// Feature angle (degrees).
     #[arg(long, value_name = "DEG", value_parser = crate::parse_angle)]
     pub sharp_angle: Option<f64>,
-    /// Repair the input as `subwave remesh --repair` does (duplicated seams welded,
-    /// non-manifold edges cut and vertices split).
+    /// Repair the input as `subwave remesh --repair` does (duplicated seams welded, slits
+    /// stitched, pocket lids removed, non-manifold edges cut and vertices split).
     #[arg(long)]
     pub repair: bool,
     /// Runs (the median is reported).

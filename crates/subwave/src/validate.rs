@@ -50,6 +50,9 @@ pub struct MeshReport {
     /// Vertices at the ends of boundary edges that lie exactly on other boundary edges
     /// (duplicated seams, [`weld_seams`]), which `remesh --repair` welds.
     pub seam_vertices: usize,
+    /// T-junctions of slits between boundary chains, which `remesh --repair` stitches
+    /// ([`crate::remesh::stitch::stitch_slits`]).
+    pub slit_vertices: usize,
     /// Edges with a positive crease sharpness tag.
     pub crease_edges: usize,
     /// Vertex tags of Maret §3.5 (boundary edges count as creases).
@@ -105,6 +108,7 @@ pub fn report(mesh: &Mesh, topo: &Topology) -> MeshReport {
     let boundary_edges = (0..topo.num_edges())
         .filter(|&e| topo.is_boundary_edge(e))
         .count();
+    let triangles = mesh.triangulate().0;
     MeshReport {
         vertices: mesh.num_vertices(),
         referenced_vertices: referenced.len(),
@@ -120,7 +124,13 @@ pub fn report(mesh: &Mesh, topo: &Topology) -> MeshReport {
         non_manifold_edges: topo.non_manifold_edges().len(),
         non_manifold_vertices: topo.non_manifold_vertices().len(),
         inconsistent_orientation_edges: topo.inconsistent_edges.len(),
-        seam_vertices: weld_seams(&mesh.positions, &mesh.triangulate().0).1,
+        seam_vertices: weld_seams(&mesh.positions, &triangles).1,
+        slit_vertices: crate::remesh::stitch::stitch_slits(
+            &mesh.positions,
+            &triangles,
+            crate::remesh::stitch::SLIT_TOLERANCE * mesh.diagonal(),
+        )
+        .1,
         crease_edges: topo.edge_sharpness.iter().filter(|&&s| s > 0.0).count(),
         tags,
         valence_histogram,

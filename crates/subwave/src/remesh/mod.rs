@@ -47,6 +47,7 @@ pub mod repair;
 pub mod resample;
 pub mod shrinkwrap;
 pub mod simplify;
+pub mod stitch;
 
 use std::time::Instant;
 

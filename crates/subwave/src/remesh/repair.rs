@@ -17,6 +17,10 @@
 //! vertex stay apart; a weld that makes an edge non-manifold (three coincident rims) is cut
 //! again by the repair above.
 //!
+//! After the weld, it stitches *slits* ([`super::stitch::stitch_slits`]): a boundary edge
+//! is split at the T-junction vertices of another boundary chain lying a hair away, where
+//! every new piece then meets a boundary edge traversed the other way (the crack closes).
+//!
 //! After the weld and before the cut, it drops *pocket lids* ([`pocket_lids`]): a
 //! triangle each of whose edges is on exactly three faces, on one side of which a small
 //! patch of faces closes a pocket over the same three edges while a larger surface goes on
@@ -29,6 +33,7 @@ use std::collections::VecDeque;
 
 use glam::DVec3;
 
+use super::stitch::SLIT_TOLERANCE;
 use crate::mesh::Mesh;
 use crate::topology::{Topology, UnionFind};
 use crate::validate::require_manifold;
@@ -58,6 +63,9 @@ pub struct RepairReport {
     /// Faces removed as the lids of pockets glued onto the surface (only with repair,
     /// [`pocket_lids`]).
     pub lid_faces: usize,
+    /// T-vertices at which boundary edges were split to close slits between boundary
+    /// chains (only with repair, [`super::stitch::stitch_slits`]).
+    pub stitched_vertices: usize,
     /// Without repair: vertices that the repair would weld (the ends of boundary edges that
     /// coincide with other boundary edges), left apart; 0 with repair.
     pub seam_vertices: usize,
@@ -74,6 +82,11 @@ impl RepairReport {
                 self.welded_vertices,
                 "welded",
                 "vertex(es) into coincident ones to close duplicated seams",
+            ),
+            (
+                self.stitched_vertices,
+                "stitched",
+                "T-junction(s) closing slits between boundaries",
             ),
             (
                 self.lid_faces,
@@ -155,8 +168,8 @@ fn counted(entries: &[(usize, &str, &str)]) -> Vec<String> {
 /// The triangles of `mesh` ready for remeshing: polygons fanned (a quad along a diagonal
 /// that is not already an edge), degenerate triangles (a repeated vertex, area below
 /// `1e-14 · diagonal²`, or the vertex set of an earlier triangle) and unreferenced vertices
-/// removed and, if `repair`, duplicated seams welded and non-manifold edges and vertices cut
-/// (see the module documentation).
+/// removed and, if `repair`, duplicated seams welded, slits stitched, pocket lids removed and
+/// non-manifold edges and vertices cut (see the module documentation).
 ///
 /// Returns the positions, the triangles and the report.
 ///
@@ -210,6 +223,15 @@ pub fn prepare(mesh: &Mesh, repair: bool) -> Result<(Vec<DVec3>, Vec<[u32; 3]>, 
         });
     } else {
         report.seam_vertices = seam_vertices;
+    }
+    // Slits between boundary chains, with T-junctions: closed with repair.
+    if repair {
+        let (stitched, inserted) =
+            super::stitch::stitch_slits(&mesh.positions, &kept, SLIT_TOLERANCE * diag);
+        if inserted > 0 {
+            report.stitched_vertices = inserted;
+            kept = stitched;
+        }
     }
     // Drop unreferenced vertices.
     let mut map = vec![u32::MAX; mesh.positions.len()];
