@@ -273,6 +273,26 @@ mod tests {
         assert_eq!(t.boundary_loops().1, 1);
     }
 
+    /// The remesher's input preparation stitches with `--repair`; without, the slit's ends
+    /// (two fans each) make the input non-manifold, named in the error.
+    #[test]
+    fn the_repair_stitches_slits() {
+        let (positions, tris) = panels(1e-3, false);
+        let faces: Vec<Vec<u32>> = tris.iter().map(|t| t.to_vec()).collect();
+        let mesh = Mesh::from_faces(positions, faces);
+        match super::super::repair::prepare(&mesh, false) {
+            Err(crate::Error::Mesh(crate::MeshError::NonManifold { edges, vertices })) => {
+                assert_eq!((edges, vertices), (vec![], vec![2, 3]));
+            }
+            other => panic!("expected a non-manifold error, got {other:?}"),
+        }
+        let (_, kept, r) = super::super::repair::prepare(&mesh, true).unwrap();
+        assert_eq!((kept.len(), r.stitched_vertices), (8, 2));
+        assert_eq!((r.non_manifold_vertices, r.added_vertices), (0, 0));
+        let summary = r.repair_summary().unwrap();
+        assert!(summary.starts_with("stitched 2 T-junction(s)"), "{summary}");
+    }
+
     #[test]
     fn a_gap_wider_than_the_tolerance_stays_open() {
         let (positions, tris) = panels(1e-2, false);
