@@ -31,6 +31,13 @@
 //! 82 + 14 (77.8 → 79.7 dB); cow's 19 stay (its folds are on its thin tail, in level-3 and
 //! level-4 triangles next to a base vertex, where every re-subdivision turns more faces
 //! over).
+//!
+//! [`patch_folds`] tries the same ancestor sets with the region's positions taken from
+//! another sampling of the same hierarchy (the remesher's relaxed and dyadic samplings,
+//! where both keep folds, in different places). Measured 2026-12-05 (`--base-faces 200`,
+//! `--repair`): beetle at 5 levels 6 → 5 flipped faces; the bunny at 6 levels keeps its 2
+//! and the cow at 4 levels (800 base faces) its 2: the other sampling's subtrees meet the
+//! outline 6 to 112 bad faces worse.
 
 use std::collections::{HashMap, HashSet};
 
@@ -86,6 +93,49 @@ pub fn flatten_folds(
     passes: u32,
     off_surface: f64,
 ) -> AncestorFlatten {
+    folds_pass(pos, hints, topologies, proj, passes, off_surface, None)
+}
+
+/// Like [`flatten_folds`], but each candidate takes the region's positions (and hints) from
+/// `other`, another sampling of the same hierarchy over the same input, instead of
+/// re-subdividing it: where two samplings fold in different places, each fold is patched
+/// with the other's subtree (bunny at 6 levels over 200 base faces: the relaxed and the
+/// dyadic samplings each keep 2 flipped faces, in different places).
+///
+/// # Panics
+/// As [`flatten_folds`], or if `other`'s sizes differ from `pos`'.
+pub fn patch_folds(
+    pos: &mut [DVec3],
+    hints: &mut [u32],
+    topologies: &[Topology],
+    proj: &Projector,
+    passes: u32,
+    off_surface: f64,
+    other: (&[DVec3], &[u32]),
+) -> AncestorFlatten {
+    assert_eq!(other.0.len(), pos.len(), "other positions per vertex");
+    assert_eq!(other.1.len(), pos.len(), "other hints per vertex");
+    folds_pass(
+        pos,
+        hints,
+        topologies,
+        proj,
+        passes,
+        off_surface,
+        Some(other),
+    )
+}
+
+/// [`flatten_folds`] (`other` `None`) or [`patch_folds`].
+fn folds_pass(
+    pos: &mut [DVec3],
+    hints: &mut [u32],
+    topologies: &[Topology],
+    proj: &Projector,
+    passes: u32,
+    off_surface: f64,
+    other: Option<(&[DVec3], &[u32])>,
+) -> AncestorFlatten {
     let levels = topologies.len() - 1;
     let topo = &topologies[levels];
     assert_eq!(
@@ -130,6 +180,7 @@ pub fn flatten_folds(
                 &level_of,
                 off_surface,
                 &mut failed,
+                other,
             ) {
                 out.subtrees += 1;
                 out.flat += flat as usize;
@@ -217,6 +268,7 @@ fn fix_face(
     level_of: &dyn Fn(usize) -> usize,
     off: f64,
     failed: &mut HashSet<(usize, Vec<u32>)>,
+    other: Option<(&[DVec3], &[u32])>,
 ) -> Option<(bool, usize)> {
     let levels = topologies.len() - 1;
     let topo = &topologies[levels];
@@ -242,8 +294,16 @@ fn fix_face(
                 continue; // the fold is not under this set
             }
             let mut helped = false;
-            for flat in [false, true] {
-                let c = resubdivide(&region, pos, hints, topologies, proj, level_of, flat);
+            let kinds: &[bool] = if other.is_some() {
+                &[false]
+            } else {
+                &[false, true]
+            };
+            for &flat in kinds {
+                let c = match other {
+                    Some(o) => taken_from(&region, o),
+                    None => resubdivide(&region, pos, hints, topologies, proj, level_of, flat),
+                };
                 let after = count_bad(&c, &touched, pos, hints, topo, proj, off);
                 tracing::trace!(
                     f,
@@ -298,6 +358,17 @@ impl Candidate {
             .map_or((pos[v as usize], hints[v as usize]), |&k| {
                 (self.pos[k], self.hints[k])
             })
+    }
+}
+
+/// The `region` vertices at their positions (and hints) in `other`.
+fn taken_from(region: &[u32], other: (&[DVec3], &[u32])) -> Candidate {
+    Candidate {
+        region: region.to_vec(),
+        index: region.iter().enumerate().map(|(k, &w)| (w, k)).collect(),
+        pos: region.iter().map(|&w| other.0[w as usize]).collect(),
+        hints: region.iter().map(|&w| other.1[w as usize]).collect(),
+        flat: false,
     }
 }
 
@@ -434,6 +505,63 @@ mod tests {
         assert_eq!(bad_after, 0);
         // The fold's vertex went back near its ring.
         assert!(pos[v].distance(c) < far.distance(c), "{:?}", pos[v]);
+    }
+
+    /// Two samplings of the same hierarchy, each with a fold where the other has none: the
+    /// first's fold is patched with the other's subtree, and nothing else moves.
+    #[test]
+    fn patches_a_fold_from_another_sampling() {
+        let (h, _) = midpoint_icosahedron(3);
+        let proj = projector(&generate::icosphere(4));
+        let clean: Vec<DVec3> = h
+            .positions
+            .iter()
+            .map(|p| proj.closest(p.normalize()).0)
+            .collect();
+        let topo = &h.topologies[3];
+        let fold = |v: usize| {
+            let mut pos = clean.clone();
+            let ring: Vec<u32> = topo
+                .vertex_faces(v)
+                .iter()
+                .flat_map(|&f| topo.face_vertices(f as usize).iter().copied())
+                .filter(|&w| w as usize != v)
+                .collect();
+            let c = ring.iter().map(|&w| pos[w as usize]).sum::<DVec3>() / ring.len() as f64;
+            pos[v] = proj.closest(c + 2.5 * (pos[ring[0] as usize] - c)).0;
+            let hints: Vec<u32> = pos.iter().map(|&p| proj.closest(p).1).collect();
+            (pos, hints)
+        };
+        let n = topo.num_vertices as usize;
+        let bad = |pos: &[DVec3], hints: &[u32]| {
+            (0..topo.num_faces())
+                .filter(|&f| is_bad(&face_state(topo.face_vertices(f), pos, hints, &proj)))
+                .count()
+        };
+        let (mut pos, mut hints) = fold(n - 7);
+        let (other_pos, other_hints) = fold(n / 2);
+        assert!(bad(&pos, &hints) > 0 && bad(&other_pos, &other_hints) > 0);
+        let before = pos.clone();
+        let r = patch_folds(
+            &mut pos,
+            &mut hints,
+            &h.topologies,
+            &proj,
+            2,
+            f64::INFINITY,
+            (&other_pos, &other_hints),
+        );
+        assert_eq!((r.flipped_after, r.degenerate_after), (0, 0), "{r:?}");
+        assert_eq!(bad(&pos, &hints), 0);
+        // Only vertices of the patched subtree moved, each to the other sampling's place.
+        for v in 0..n {
+            assert!(pos[v] == before[v] || pos[v] == other_pos[v], "vertex {v}");
+        }
+        assert_eq!(
+            pos[n / 2],
+            before[n / 2],
+            "the other's fold is not brought in"
+        );
     }
 
     /// Nothing to do on a clean remesh: positions unchanged, counts zero.

@@ -313,6 +313,10 @@ pub fn remesh_with_progress(
     let mut h = Hierarchy::new(&base, opts.levels, split, None)?;
     // The resampling, relaxation and repair of one set of parameters (dyadic, or relaxed
     // in the base domain).
+    // Off-surface tolerance of the final repair: coarser levels stand farther off the input
+    // (chordal error, about four times per level).
+    let off_surface =
+        OFF_SURFACE * prepared.diagonal() * 4f64.powi((5 - opts.levels as i32).max(0));
     let sample = |params: Vec<simplify::Param>, progress: &mut dyn FnMut(&str, f64)| -> Sampled {
         let t = Instant::now();
         let mut run_warnings = Vec::new();
@@ -399,10 +403,6 @@ pub fn remesh_with_progress(
         }
         let resample_ms = ms(t);
         let t = Instant::now();
-        // Off-surface tolerance of the final repair: coarser levels stand farther off the input
-        // (chordal error, about four times per level).
-        let off_surface =
-            OFF_SURFACE * prepared.diagonal() * 4f64.powi((5 - opts.levels as i32).max(0));
         // Faces flipped against the input (quality measure), as the final repair counted them.
         let flipped_after;
         let degenerate_after;
@@ -549,14 +549,13 @@ pub fn remesh_with_progress(
                 tracing::debug!(left, at_base, at_fixed, at_miss, "flipped faces");
             }
             if left > 0 {
-                run_warnings.push(format!(
-                    "{left} face(s) still flipped after untangling and repair"
-                ));
+                run_warnings.push(format!("{left} {STILL_FLIPPED}"));
             }
             progress("relax", 1.0);
         }
         Sampled {
             fine,
+            hints,
             method,
             flipped: flipped_after,
             degenerate: degenerate_after,
@@ -605,8 +604,35 @@ pub fn remesh_with_progress(
             dyadic.flipped + dyadic.degenerate,
             run.flipped + run.degenerate,
         );
+        let mut other = dyadic;
         if bad_dyadic == 0 || bad_dyadic + DYADIC_MARGIN <= bad_relaxed {
-            run = dyadic;
+            std::mem::swap(&mut run, &mut other);
+        }
+        // Where both fold, in different places: the kept one's folds patched with the other's
+        // subtrees.
+        if run.flipped + run.degenerate > 0
+            && run.method == Method::Maps
+            && other.method == Method::Maps
+            && h.split == Split::Triangles
+        {
+            let r = ancestor_flatten::patch_folds(
+                &mut run.fine,
+                &mut run.hints,
+                &h.topologies,
+                &proj,
+                2,
+                off_surface,
+                (&other.fine, &other.hints),
+            );
+            tracing::debug!(?r, "folds patched from the other sampling");
+            if r.flipped_after + r.degenerate_after < run.flipped + run.degenerate {
+                (run.flipped, run.degenerate) = (r.flipped_after, r.degenerate_after);
+                run.warnings.retain(|w| !w.ends_with(STILL_FLIPPED));
+                if run.flipped > 0 {
+                    run.warnings
+                        .push(format!("{} {STILL_FLIPPED}", run.flipped));
+                }
+            }
         }
         run.resample_ms = resample_ms;
         run.relax_ms = relax_ms;
@@ -681,9 +707,14 @@ fn flatten_left(
 /// keeping the dyadic one for that face cost 2.5 dB.
 const DYADIC_MARGIN: usize = 3;
 
+/// The warning on the faces a remesh leaves flipped, after their number.
+const STILL_FLIPPED: &str = "face(s) still flipped after untangling and repair";
+
 /// One resampling of the finest level ([`remesh_with_progress`]).
 struct Sampled {
     fine: Vec<DVec3>,
+    /// An input triangle near each vertex of `fine`.
+    hints: Vec<u32>,
     method: Method,
     flipped: usize,
     degenerate: usize,
