@@ -98,9 +98,9 @@ pub fn flatten_folds(
 
 /// Like [`flatten_folds`], but each candidate takes the region's positions (and hints) from
 /// `other`, another sampling of the same hierarchy over the same input, instead of
-/// re-subdividing it: where two samplings fold in different places, each fold is patched
-/// with the other's subtree (bunny at 6 levels over 200 base faces: the relaxed and the
-/// dyadic samplings each keep 2 flipped faces, in different places).
+/// re-subdividing it: where two samplings fold in different places, a fold is patched with
+/// the other's subtree where that subtree meets the kept outline without more bad faces
+/// (measured in the module documentation).
 ///
 /// # Panics
 /// As [`flatten_folds`], or if `other`'s sizes differ from `pos`'.

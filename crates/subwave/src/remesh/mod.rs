@@ -311,12 +311,12 @@ pub fn remesh_with_progress(
         (Split::Triangles, b)
     };
     let mut h = Hierarchy::new(&base, opts.levels, split, None)?;
-    // The resampling, relaxation and repair of one set of parameters (dyadic, or relaxed
-    // in the base domain).
     // Off-surface tolerance of the final repair: coarser levels stand farther off the input
     // (chordal error, about four times per level).
     let off_surface =
         OFF_SURFACE * prepared.diagonal() * 4f64.powi((5 - opts.levels as i32).max(0));
+    // The resampling, relaxation and repair of one set of parameters (dyadic, or relaxed
+    // in the base domain).
     let sample = |params: Vec<simplify::Param>, progress: &mut dyn FnMut(&str, f64)| -> Sampled {
         let t = Instant::now();
         let mut run_warnings = Vec::new();
