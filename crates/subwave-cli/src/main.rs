@@ -47,7 +47,8 @@ struct Cli {
 #[derive(Debug, Subcommand)]
 enum Command {
     /// Print counts and measures of a mesh: vertices, faces, edges, boundaries, components,
-    /// Euler characteristic, genus, non-manifold elements, valences, bounding box, tags.
+    /// Euler characteristic, genus, non-manifold elements, duplicated seams and slit
+    /// T-junctions (which `remesh --repair` welds and stitches), valences, bounding box, tags.
     Info(InfoArgs),
     /// Convert a mesh between formats (OBJ, OFF, PLY, STL in; OBJ, OFF, PLY, STL, GLB out).
     Convert(ConvertArgs),
