@@ -39,6 +39,9 @@ pub fn stitch_slits(
     tris: &[[u32; 3]],
     tolerance: f64,
 ) -> (Vec<[u32; 3]>, usize) {
+    if tolerance.is_nan() || tolerance <= 0.0 {
+        return (tris.to_vec(), 0);
+    }
     // Face sides (undirected edge key, face side `3 f + i`), sorted: an edge's faces are
     // its run of equal keys, a boundary edge a run of one.
     let key2 = |a: u32, b: u32| (u64::from(a.min(b)) << 32) | u64::from(a.max(b));
@@ -66,7 +69,7 @@ pub fn stitch_slits(
         }
     }
     boundary.sort_unstable_by_key(|e| (e.2, e.0));
-    if boundary.is_empty() || tolerance.is_nan() || tolerance <= 0.0 {
+    if boundary.is_empty() {
         return (tris.to_vec(), 0);
     }
     let mut corners: Vec<u32> = boundary.iter().flat_map(|e| [e.0, e.1]).collect();
