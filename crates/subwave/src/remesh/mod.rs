@@ -48,6 +48,7 @@ pub mod resample;
 pub mod shrinkwrap;
 pub mod simplify;
 pub mod stitch;
+mod untangle_energy;
 
 use std::time::Instant;
 
