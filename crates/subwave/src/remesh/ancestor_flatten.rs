@@ -16,14 +16,15 @@
 //! §3.2), either projected onto the input after each midpoint (a fresh resampling of the
 //! subtrees, tried first) or left on the planes of the set's triangles (whose faces keep
 //! their normals and angles); third, the set's inside is re-embedded by Tutte's embedding
-//! spanned by its outline in a flattening of the input under it (as [`super::flatten`]
+//! spanned by its outline in a flattening of the input under it (as the fold repair
 //! re-embeds discs), and the few faces that leaves bad are repaired with only the inside
 //! free ([`repair_folds`]). The third kind is for a region the resampling crushed along a
 //! line, whose coarse ancestors are slivers too: a re-subdivision keeps their shape, and the
 //! fold repair's discs of rings and circles do not reach past the crushed strip (the
-//! bunny's last flipped face at 6 levels, in a 20 mm by 3 mm strip of level-4 triangles,
-//! is opened by re-embedding its level-2 ancestor: 1 → 0). The first candidate that leaves no bad face among all faces
-//! around the moved vertices is kept; otherwise the one that removes the most, if any
+//! bunny's last flipped face at 6 levels, in a strip of level-4 triangles 8% of the
+//! diagonal long and 1.2% wide, is opened by re-embedding its level-2 ancestor: 1 → 0).
+//! The first candidate that leaves no bad face among all faces around the moved vertices
+//! is kept; otherwise the one that removes the most, if any
 //! removes one; otherwise nothing changes. Each change is measured over every face it can
 //! alter, so the number of bad faces only goes down.
 //!
@@ -597,19 +598,26 @@ mod tests {
         Projector::new(&m.positions, &tris).unwrap()
     }
 
+    /// The hierarchy of a 3-level midpoint subdivision of an icosahedron, a finer icosphere
+    /// as the input, and the hierarchy's vertices projected onto it with their hints.
+    fn on_the_sphere() -> (Hierarchy, Projector, Vec<DVec3>, Vec<u32>) {
+        let (h, _) = midpoint_icosahedron(3);
+        let proj = projector(&generate::icosphere(4));
+        let pos: Vec<DVec3> = h
+            .positions
+            .iter()
+            .map(|p| proj.closest(p.normalize()).0)
+            .collect();
+        let hints: Vec<u32> = pos.iter().map(|&p| proj.closest(p).1).collect();
+        (h, proj, pos, hints)
+    }
+
     /// A 3-level midpoint subdivision of an icosphere projected onto the unit sphere, with a
     /// fold made by pushing one finest vertex across its neighbours: the pass removes the
     /// fold, moves no base vertex, and leaves no bad face.
     #[test]
     fn removes_a_fold_and_keeps_the_base() {
-        let (h, _) = midpoint_icosahedron(3);
-        let proj = projector(&generate::icosphere(4));
-        let mut pos: Vec<DVec3> = h
-            .positions
-            .iter()
-            .map(|p| proj.closest(p.normalize()).0)
-            .collect();
-        let mut hints: Vec<u32> = pos.iter().map(|&p| proj.closest(p).1).collect();
+        let (h, proj, mut pos, mut hints) = on_the_sphere();
         let topo = &h.topologies[3];
         // Fold: a finest vertex pushed far across its one-ring.
         let v = topo.num_vertices as usize - 7;
@@ -704,14 +712,7 @@ mod tests {
     /// leaves no bad face around it, and puts every vertex on the input.
     #[test]
     fn a_crushed_region_is_reembedded_from_its_outline() {
-        let (h, _) = midpoint_icosahedron(3);
-        let proj = projector(&generate::icosphere(4));
-        let mut pos: Vec<DVec3> = h
-            .positions
-            .iter()
-            .map(|p| proj.closest(p.normalize()).0)
-            .collect();
-        let mut hints: Vec<u32> = pos.iter().map(|&p| proj.closest(p).1).collect();
+        let (h, proj, mut pos, mut hints) = on_the_sphere();
         let topo = &h.topologies[3];
         let f = topo.num_faces() / 3;
         let set = ancestor_sets(f, 1, &h.topologies)[1].clone();

@@ -2,16 +2,16 @@
 //!
 //! Escobar, Rodríguez, Montenegro, Montero & González-Yuste, "Simultaneous untangling and
 //! smoothing of tetrahedral meshes", Computer Methods in Applied Mechanics and Engineering
-//! 192 (2003), §3 — here in the plane, for triangles. The shape energy of a triangle
+//! 192 (2003) — here in the plane, for triangles. The shape energy of a triangle
 //! `(x, a, b)` is its condition number `η = ‖S‖² / (2σ)` (`S` the Jacobian of the map from an
 //! equilateral triangle, `σ = det S`), up to a constant `l / σ`: the sum of its squared edge
 //! lengths over its doubled signed area. `l / σ` is a barrier that keeps a valid mesh valid,
-//! but it is undefined where `σ ≤ 0`. Escobar et al. (§3, eq. 9) replace `σ` by
+//! but it is undefined where `σ ≤ 0`. Escobar et al. replace `σ` by
 //! `h(σ) = (σ + √(σ² + 4δ²)) / 2`, positive for every `σ`, increasing, and `≈ δ² / |σ|` for
 //! inverted triangles, whose energy is then large and falls as they turn over: the
 //! minimization of `Σ l / h(σ)` moves the nodes of inverted triangles until they are valid
 //! *and* smooths the valid ones, at once, instead of untangling first and smoothing after.
-//! `δ` follows the worst triangle (§3, eq. 11: `δ² = ε(ε − σ_min)` while `σ_min < ε`, else
+//! `δ` follows the worst triangle (`δ² = ε(ε − σ_min)` while `σ_min < ε`, else
 //! 0, with `σ` normalized by the mean squared edge length), so that the modified energy is
 //! the plain one once the mesh is valid.
 //!
@@ -19,14 +19,15 @@
 //! corners of the disc's boundary and moving one node at a time into the kernel of its star
 //! gets stuck: nodes that must move together (a fold across several free vertices whose
 //! stars' kernels are each empty) move together here, since each node's step lowers the
-//! energy of its neighbours' triangles too. The minimization is node by node (Gauss-Seidel),
-//! each step a Newton step on the node's star (2 × 2, the Hessian from central differences
-//! of the exact gradient) or, where the Hessian is not positive definite, a gradient step,
-//! with a backtracking line search (Escobar et al. §4).
+//! energy of its neighbours' triangles too. The minimization is node by node (Gauss-Seidel,
+//! over the free nodes within [`ACTIVE_RINGS`] rings of a triangle below `ε`: the rest of a
+//! disc is valid and stays where Tutte's embedding put it), each step a Newton step on the
+//! node's star (2 × 2, exact gradient and Hessian) or, where the Hessian is not positive
+//! definite, a gradient step, with a backtracking line search.
 
 use glam::DVec2;
 
-/// `ε` of the regularization (`δ² = ε(ε − σ_min)`, Escobar et al. eq. 11), in units of the
+/// `ε` of the regularization (`δ² = ε(ε − σ_min)`, `δ` chosen from the worst triangle as Escobar et al. do), in units of the
 /// mean squared edge length.
 const EPSILON: f64 = 1e-3;
 
