@@ -366,10 +366,7 @@ fn fix_face(
     }
     let (_, c) = best?;
     failed.clear();
-    for (k, &w) in c.region.iter().enumerate() {
-        pos[w as usize] = c.pos[k];
-        hints[w as usize] = c.hints[k];
-    }
+    c.apply(pos, hints);
     for &g in &faces_around(&c.region, topo) {
         state[g as usize] = face_state(topo.face_vertices(g as usize), pos, hints, proj);
     }
@@ -387,6 +384,25 @@ struct Candidate {
 }
 
 impl Candidate {
+    /// The candidate moving the `region` vertices (sorted) to `pos` and `hints` (one each).
+    fn new(region: &[u32], pos: Vec<DVec3>, hints: Vec<u32>, flat: bool) -> Candidate {
+        Candidate {
+            region: region.to_vec(),
+            index: region.iter().enumerate().map(|(k, &w)| (w, k)).collect(),
+            pos,
+            hints,
+            flat,
+        }
+    }
+
+    /// Writes the candidate's positions and hints into `pos` and `hints`.
+    fn apply(&self, pos: &mut [DVec3], hints: &mut [u32]) {
+        for (k, &w) in self.region.iter().enumerate() {
+            pos[w as usize] = self.pos[k];
+            hints[w as usize] = self.hints[k];
+        }
+    }
+
     /// The position and hint of vertex `v`: new if it is in the region, else from `pos`
     /// and `hints`.
     fn at(&self, v: u32, pos: &[DVec3], hints: &[u32]) -> (DVec3, u32) {
@@ -433,33 +449,29 @@ fn reembedded(
     verts.dedup();
     let patch = Patch::under(pos, hints, &verts, proj)?;
     let moves = flat_reembed(&patch, pos, hints, topo, region, &[], touched, proj).ok()?;
-    Some(Candidate {
-        region: region.to_vec(),
-        index: region.iter().enumerate().map(|(k, &w)| (w, k)).collect(),
-        pos: moves.iter().map(|m| m.0).collect(),
-        hints: moves.iter().map(|m| m.1).collect(),
-        flat: false,
-    })
+    Some(Candidate::new(
+        region,
+        moves.iter().map(|m| m.0).collect(),
+        moves.iter().map(|m| m.1).collect(),
+        false,
+    ))
 }
 
 /// Candidate `c` with the bad faces it leaves among `touched` repaired by
-/// [`repair_folds`], only its region's vertices free.
+/// [`repair_folds`], only its region's vertices free (run on `pos` and `hints` in place,
+/// which are then put back as they were).
 fn polished(
     c: &Candidate,
     touched: &[u32],
-    pos: &[DVec3],
-    hints: &[u32],
+    pos: &mut [DVec3],
+    hints: &mut [u32],
     topo: &Topology,
     proj: &Projector,
     off: f64,
 ) -> Candidate {
-    let mut p = pos.to_vec();
-    let mut h = hints.to_vec();
-    for (k, &w) in c.region.iter().enumerate() {
-        p[w as usize] = c.pos[k];
-        h[w as usize] = c.hints[k];
-    }
-    let mut fixed = vec![true; p.len()];
+    let saved = taken_from(&c.region, (pos, hints));
+    c.apply(pos, hints);
+    let mut fixed = vec![true; pos.len()];
     for &w in &c.region {
         fixed[w as usize] = false;
     }
@@ -468,14 +480,14 @@ fn polished(
         .copied()
         .filter(|&g| {
             counts_against(
-                &face_state(topo.face_vertices(g as usize), &p, &h, proj),
+                &face_state(topo.face_vertices(g as usize), pos, hints, proj),
                 off,
             )
         })
         .collect();
     repair_folds(
-        &mut p,
-        &mut h,
+        pos,
+        hints,
         topo,
         &fixed,
         &[],
@@ -484,13 +496,11 @@ fn polished(
         Some(&suspects),
         f64::INFINITY,
     );
-    Candidate {
-        region: c.region.clone(),
-        index: c.index.clone(),
-        pos: c.region.iter().map(|&w| p[w as usize]).collect(),
-        hints: c.region.iter().map(|&w| h[w as usize]).collect(),
-        flat: false,
-    }
+    // Only the region's vertices moved (the others are fixed): putting them back restores
+    // every position and hint.
+    let out = taken_from(&c.region, (pos, hints));
+    saved.apply(pos, hints);
+    out
 }
 
 /// Rounds of [`repair_folds`]' vertex moves in [`polished`].
@@ -498,13 +508,12 @@ const POLISH_ROUNDS: u32 = 12;
 
 /// The `region` vertices at their positions (and hints) in `other`.
 fn taken_from(region: &[u32], other: (&[DVec3], &[u32])) -> Candidate {
-    Candidate {
-        region: region.to_vec(),
-        index: region.iter().enumerate().map(|(k, &w)| (w, k)).collect(),
-        pos: region.iter().map(|&w| other.0[w as usize]).collect(),
-        hints: region.iter().map(|&w| other.1[w as usize]).collect(),
-        flat: false,
-    }
+    Candidate::new(
+        region,
+        region.iter().map(|&w| other.0[w as usize]).collect(),
+        region.iter().map(|&w| other.1[w as usize]).collect(),
+        false,
+    )
 }
 
 /// New positions and hints of the `region` vertices (sorted ascending, all created after
@@ -519,13 +528,12 @@ fn resubdivide(
     level_of: &dyn Fn(usize) -> usize,
     flat: bool,
 ) -> Candidate {
-    let mut c = Candidate {
-        region: region.to_vec(),
-        index: region.iter().enumerate().map(|(k, &w)| (w, k)).collect(),
-        pos: Vec::with_capacity(region.len()),
-        hints: Vec::with_capacity(region.len()),
+    let mut c = Candidate::new(
+        region,
+        Vec::with_capacity(region.len()),
+        Vec::with_capacity(region.len()),
         flat,
-    };
+    );
     for &w in region {
         let w = w as usize;
         let l = level_of(w); // w is a vertex of level l, created on an edge of level l − 1
