@@ -287,7 +287,11 @@ impl Topology {
             }
             x => x,
         };
-        // The three relations are independent counting sorts: build them in parallel.
+        // The three relations are independent counting sorts: build them in parallel. (Writing
+        // the edge-face and vertex-edge relations inside the refiner's serial edge-numbering
+        // scan instead was measured slower: the bunny's third Catmull-Clark level's scan went
+        // from 9 to 38 ms and `subdivide` from 86 to 106 ms; the scattered writes cost the
+        // same wherever they are made, and here they run on two cores.)
         let (
             (edge_face_offsets, edge_faces),
             (

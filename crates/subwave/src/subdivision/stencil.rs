@@ -863,6 +863,8 @@ impl Level<'_> {
                 }
                 return Some(acc);
             }
+            // (Reading the ring from the faces, the next corner in each, instead of through the
+            // edges was measured 3 ms slower on the bunny's third Catmull-Clark level.)
             // The vertex, its ring (distinct: no two edges join the same vertices), then the
             // points of its faces.
             let [wv, wr, wf] = self.fast.face_point_vertex[n]?;
