@@ -68,6 +68,10 @@ pub(crate) enum VertexFaces {
     /// Faces and corners built by the caller, exactly as [`VertexFaces::Sort`] would order
     /// them, laid out by the vertex-face offsets the caller also gives (else sorted).
     Given(Vec<u32>, Vec<u16>),
+    /// No vertex relation at all, neither faces nor edges (not even their offsets): a level
+    /// whose consumer gathers each vertex's relations from the coarser level (see
+    /// [`Topology::has_vertex_edges`]).
+    Without,
 }
 
 /// Flat topology tables of a polygon mesh. See the module documentation for the conventions.
@@ -264,20 +268,19 @@ impl Topology {
         vertex_faces: VertexFaces,
     ) -> Self {
         assert!(
-            !matches!(vertex_faces, VertexFaces::Lean) || !order_rings,
+            !matches!(vertex_faces, VertexFaces::Lean | VertexFaces::Without) || !order_rings,
             "ordering rings needs the vertex-face table"
         );
+        let without = matches!(vertex_faces, VertexFaces::Without);
         let ne = edge_vertices.len();
         // Offsets whose sizes or totals disagree with the tables are counted instead.
         let fits = |o: &Vec<u32>, n: usize, total: usize| {
             o.len() == n + 2 && o.last().is_some_and(|&t| t as usize == total)
         };
-        let offsets = offsets.filter(|[vf, ve, ef]| {
-            fits(vf, nv, face_vertices.len())
-                && fits(ve, nv, 2 * ne)
-                && fits(ef, ne, face_edges.len())
-        });
         let [vf, ve, ef] = offsets.map_or([None, None, None], |o| o.map(Some));
+        let vf = vf.filter(|o| fits(o, nv, face_vertices.len()));
+        let ve = ve.filter(|o| fits(o, nv, 2 * ne));
+        let ef = ef.filter(|o| fits(o, ne, face_edges.len()));
         // A given table must fit the corners and come with its offsets.
         let vertex_faces = match vertex_faces {
             VertexFaces::Given(f, c)
@@ -314,6 +317,7 @@ impl Topology {
                             }
                             VertexFaces::Lean => (Vec::new(), Vec::new()),
                             VertexFaces::Given(f, c) => (f, c),
+                            VertexFaces::Without => return (Vec::new(), Vec::new(), Vec::new()),
                         };
                         let mut off = vf.unwrap_or_else(|| {
                             Self::counting_offsets(nv, face_vertices.iter().copied())
@@ -323,7 +327,13 @@ impl Topology {
                         off.remove(0);
                         (off, faces, corners)
                     },
-                    || Self::vertex_edge_table(nv, &edge_vertices, ve),
+                    || {
+                        if without {
+                            (Vec::new(), Vec::new())
+                        } else {
+                            Self::vertex_edge_table(nv, &edge_vertices, ve)
+                        }
+                    },
                 )
             },
         );
@@ -340,7 +350,8 @@ impl Topology {
                 CHUNK,
                 || (),
                 |_, v| {
-                    if vertex_edge_offsets[v + 1] > vertex_edge_offsets[v] {
+                    // Without vertex relations (a refined level), every vertex has edges.
+                    if without || vertex_edge_offsets[v + 1] > vertex_edge_offsets[v] {
                         VertexKind::Interior
                     } else {
                         VertexKind::Isolated
@@ -616,6 +627,15 @@ impl Topology {
     #[inline]
     pub fn has_vertex_faces(&self) -> bool {
         self.vertex_faces.len() == self.face_vertices.len()
+    }
+
+    /// False on a refined level built without vertex relations (the refiner builds such a
+    /// level for its own use, gathers them from the coarser level, and drops it): its
+    /// [`Topology::vertex_edges`], [`Topology::vertex_faces`] and their offsets are empty.
+    /// True on every topology the library hands out.
+    #[inline]
+    pub fn has_vertex_edges(&self) -> bool {
+        !self.vertex_edge_offsets.is_empty() || self.num_vertices == 0
     }
 
     /// The faces around `v` in face order with `v`'s corner in each, into `faces` and

@@ -32,7 +32,7 @@
 //!   face `f` lie along its edges `v_i v_{i+1}`, see [`super::sqrt3`]'s ordering contract.
 
 use crate::par::Filler;
-use crate::topology::{Topology, VertexFaces};
+use crate::topology::{Topology, VertexFaces, VertexKind};
 
 /// How a scheme splits faces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -461,19 +461,7 @@ fn child_offsets(parent: &Topology, split: Split, c: &ChildEdges) -> Option<[Vec
     let nv = parent.num_vertices as usize;
     let ne = parent.num_edges();
     let n_child = child_vertex_count(parent, split);
-    // The three tables are independent: built in parallel, each a prefix sum of counts
-    // (a leading 0, then the offsets).
-    fn prefix(n: usize, count: impl Fn(usize) -> u32) -> Vec<u32> {
-        let mut off = Vec::with_capacity(n + 2);
-        off.push(0u32);
-        off.push(0u32);
-        let mut acc = 0u32;
-        off.extend((0..n).map(|k| {
-            acc += count(k);
-            acc
-        }));
-        off
-    }
+    // The three tables are independent: built in parallel.
     let edge_faces = |e: usize| parent.edge_face_offsets[e + 1] - parent.edge_face_offsets[e];
     let vf = || {
         prefix(n_child, |v| {
@@ -497,20 +485,73 @@ fn child_offsets(parent: &Topology, split: Split, c: &ChildEdges) -> Option<[Vec
             }
         })
     };
-    let ef = || {
-        let mut counts = vec![2u8; c.edge_vertices.len()];
-        for (e, h) in c.edge_halves.iter().enumerate() {
-            let n = edge_faces(e);
-            if n != 2 {
-                for &x in h {
-                    counts[x as usize] = n.min(255) as u8;
-                }
-            }
-        }
-        prefix(counts.len(), |e| counts[e] as u32)
-    };
+    let ef = || child_edge_face_offsets(parent, c);
     let (vf, (ve, ef)) = rayon::join(vf, || rayon::join(ve, ef));
     Some([vf, ve, ef])
+}
+
+/// A prefix sum of `n` counts in the layout of [`child_offsets`]: a leading 0, then the
+/// `n + 1` offsets.
+fn prefix(n: usize, count: impl Fn(usize) -> u32) -> Vec<u32> {
+    let mut off = Vec::with_capacity(n + 2);
+    off.push(0u32);
+    off.push(0u32);
+    let mut acc = 0u32;
+    off.extend((0..n).map(|k| {
+        acc += count(k);
+        acc
+    }));
+    off
+}
+
+/// The child level's edge-face offsets (the layout of [`child_offsets`]): two faces per child
+/// edge, but the halves of a parent edge lie in as many child faces as it has faces.
+fn child_edge_face_offsets(parent: &Topology, c: &ChildEdges) -> Vec<u32> {
+    let mut counts = vec![2u8; c.edge_vertices.len()];
+    for (e, h) in c.edge_halves.iter().enumerate() {
+        let n = parent.edge_face_offsets[e + 1] - parent.edge_face_offsets[e];
+        if n != 2 {
+            for &x in h {
+                counts[x as usize] = n.min(255) as u8;
+            }
+        }
+    }
+    prefix(counts.len(), |e| u32::from(counts[e]))
+}
+
+/// The child level of a polygon split without vertex relations ([`VertexFaces::Without`]):
+/// faces, edges, edge faces and kinds, zero sharpness. The refiner builds it for the last
+/// level it evaluates, whose vertices' relations `super::stencil::level_apply_from_coarser`
+/// reads from `parent` instead: the vertex-face and vertex-edge tables are the largest part
+/// of a level's tables, and their counting sort the longest serial pass of its build.
+/// Returns the level and the halves of `parent`'s edges, as [`refine_topology`] does.
+///
+/// Preconditions: those of [`child_edges`] for [`Split::Polygons`].
+pub(crate) fn refine_topology_without_vertex_relations(
+    parent: &Topology,
+) -> (Topology, Vec<[u32; 2]>) {
+    let split = Split::Polygons;
+    let nv = child_vertex_count(parent, split);
+    let c = child_edges(parent, split);
+    let ef = child_edge_face_offsets(parent, &c);
+    let mut topo = Topology::from_edges_counted(
+        nv,
+        c.face_offsets,
+        c.face_vertices,
+        c.face_edges,
+        c.edge_vertices,
+        false,
+        Some([Vec::new(), Vec::new(), ef]),
+        VertexFaces::Without,
+    );
+    // Without vertex relations every vertex is taken to have edges: an isolated parent
+    // vertex stays isolated.
+    for (v, k) in parent.vertex_kinds.iter().enumerate() {
+        if *k == VertexKind::Isolated {
+            topo.vertex_kinds[v] = VertexKind::Isolated;
+        }
+    }
+    (topo, c.edge_halves)
 }
 
 #[cfg(test)]

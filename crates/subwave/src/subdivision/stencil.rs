@@ -491,6 +491,26 @@ struct Scratch {
     /// A vertex's faces and corners, gathered on a lean level (no vertex-face table).
     faces: Vec<u32>,
     corners: Vec<u16>,
+    /// A vertex's edges and a crease end's edges, gathered on a level without vertex
+    /// relations ([`Coarser`]).
+    edges: Vec<u32>,
+    end_edges: Vec<u32>,
+    /// Sorting space of a gathered vertex's faces and corners.
+    pairs: Vec<(u32, u16)>,
+}
+
+/// The coarser level of a polygon split's level built without vertex relations
+/// ([`crate::topology::Topology::has_vertex_edges`] false): the level refined into it and the
+/// halves of its edges ([`super::refine::ChildEdges::edge_halves`]), from which each vertex's
+/// relations follow by the ordering contract of [`super::refine`]. A child face `offset_F +
+/// i` of coarser face `F` is `(v_i, m_i, c, m_{i-1})` with edges `(v_i m_i, m_i c, c m_{i-1},
+/// m_{i-1} v_i)`: its second edge is the spoke at `m_i`.
+#[derive(Clone, Copy)]
+pub(crate) struct Coarser<'a> {
+    /// The coarser level (rings not ordered: its vertex faces ascend).
+    pub(crate) topo: &'a Topology,
+    /// Per coarser edge, its child halves at its ends 0 and 1.
+    pub(crate) halves: &'a [[u32; 2]],
 }
 
 /// One level's stencil generator: the single place that turns masks into (index, weight)
@@ -514,10 +534,23 @@ struct Level<'a> {
     nv: usize,
     ne: usize,
     n_child: usize,
+    /// Set when `topo` has no vertex relations: they are read from the coarser level.
+    coarser: Option<Coarser<'a>>,
 }
 
 impl<'a> Level<'a> {
-    fn new(topo: &'a Topology, ctx: &'a LevelContext<'a>) -> Self {
+    fn new(topo: &'a Topology, ctx: &'a LevelContext<'a>, coarser: Option<Coarser<'a>>) -> Self {
+        assert_eq!(
+            coarser.is_some(),
+            !topo.has_vertex_edges(),
+            "a level without vertex relations needs its coarser level, and only it"
+        );
+        if let Some(c) = &coarser {
+            assert!(
+                !c.topo.rings_ordered && ctx.rules.split() == Split::Polygons,
+                "the coarser level of a polygon split, with its vertex faces in face order"
+            );
+        }
         let nv = topo.num_vertices as usize;
         let ne = topo.num_edges();
         let split = ctx.rules.split();
@@ -554,7 +587,169 @@ impl<'a> Level<'a> {
             nv,
             ne,
             n_child,
+            coarser,
         }
+    }
+
+    /// The edges of vertex `v` (ascending) into `edges`, and its faces (ascending) with its
+    /// corner in each into `pairs`, on a level without vertex relations, from the coarser
+    /// level `c` (see [`Coarser`]): what the counting sorts of
+    /// [`Topology::from_edges_counted`] would have listed.
+    fn gather(&self, c: &Coarser, v: usize, edges: &mut Vec<u32>, pairs: &mut Vec<(u32, u16)>) {
+        let (p, topo) = (c.topo, self.topo);
+        let (nvp, nep) = (p.num_vertices as usize, p.num_edges());
+        edges.clear();
+        pairs.clear();
+        let spoke = |child: u32| topo.face_edges(child as usize)[1];
+        if v < nvp {
+            // A coarser vertex: one half per coarser edge, one corner child per coarser face.
+            for &e in p.vertex_edges(v) {
+                let end = usize::from(p.edge_vertices[e as usize][0] != v as u32);
+                edges.push(c.halves[e as usize][end]);
+            }
+            for (&f, &k) in p.vertex_faces(v).iter().zip(p.vertex_face_corners(v)) {
+                pairs.push((p.face_offsets[f as usize] + u32::from(k), 0));
+            }
+        } else if v < nvp + nep {
+            // An edge point: the two halves, and per coarser face the spoke of the child at
+            // the edge's corner, which with the next child holds the point (corners 1, 3).
+            let e = v - nvp;
+            edges.extend_from_slice(&c.halves[e]);
+            for &f in p.edge_faces(e) {
+                let fe = p.face_edges(f as usize);
+                let i = fe.iter().position(|&x| x as usize == e).unwrap_or(0);
+                let o = p.face_offsets[f as usize];
+                let next = if i + 1 == fe.len() { 0 } else { i + 1 };
+                edges.push(spoke(o + i as u32));
+                pairs.push((o + i as u32, 1));
+                pairs.push((o + next as u32, 3));
+            }
+        } else {
+            // A face point: the spokes of the face's children, corner 2 of each.
+            let f = v - nvp - nep;
+            let o = p.face_offsets[f];
+            for k in 0..p.face_vertices(f).len() as u32 {
+                edges.push(spoke(o + k));
+                pairs.push((o + k, 2));
+            }
+        }
+        edges.sort_unstable();
+        pairs.sort_unstable();
+    }
+
+    /// Child `j < nv`'s value on a level without vertex relations, by the coarser level's
+    /// recipe of a smooth interior Catmull-Clark vertex (the vertex, its ring in ascending
+    /// edge order, the points of its faces in ascending order: the sequence
+    /// [`Level::stencil`] builds from the gathered relations), or `None`.
+    #[inline(always)]
+    fn coarser_vertex<T: Interpolate>(
+        &self,
+        c: &Coarser,
+        v: usize,
+        src: &[T],
+        tail: &[T],
+    ) -> Option<T> {
+        if self.features[v] != 0 || tail.is_empty() {
+            return None;
+        }
+        let p = c.topo;
+        let (nvp, nep) = (p.num_vertices as usize, p.num_edges());
+        let mut acc = T::zero();
+        if v < nvp {
+            let edges = p.vertex_edges(v);
+            let faces = p.vertex_faces(v);
+            let n = edges.len();
+            if n == 0 || n != faces.len() || n >= CACHED_VALENCE {
+                return None;
+            }
+            let [wv, wr, wf] = self.fast.face_point_vertex[n]?;
+            let mut ring = [(0u32, 0u32); CACHED_VALENCE];
+            for (r, &e) in ring.iter_mut().zip(edges) {
+                let end = usize::from(p.edge_vertices[e as usize][0] != v as u32);
+                *r = (c.halves[e as usize][end], nvp as u32 + e);
+            }
+            let ring = &mut ring[..n];
+            // Insertion sort: rings are short and nearly sorted.
+            for i in 1..n {
+                let mut k = i;
+                while k > 0 && ring[k - 1].0 > ring[k].0 {
+                    ring.swap(k - 1, k);
+                    k -= 1;
+                }
+            }
+            acc.add_scaled(&src[v], wv);
+            for &(_, r) in ring.iter() {
+                acc.add_scaled(&src[r as usize], wr);
+            }
+            for (&f, &k) in faces.iter().zip(p.vertex_face_corners(v)) {
+                acc.add_scaled(&tail[first_corner(p, f as usize) + k as usize], wf);
+            }
+        } else if v < nvp + nep {
+            let e = v - nvp;
+            let ef = p.edge_faces(e);
+            if ef.len() != 2 {
+                return None;
+            }
+            let [wv, wr, wf] = self.fast.face_point_vertex[4]?;
+            let [a, b] = p.edge_vertices[e];
+            let [ha, hb] = c.halves[e];
+            let (f0, f1) = (ef[0] as usize, ef[1] as usize);
+            let (c0, c1) = (nvp + nep + f0, nvp + nep + f1);
+            // The halves and the first face's spoke are numbered in that face's scan: the half
+            // at end 0 first unless the edge closes the face (then its spoke comes first and
+            // the half at end 1 before the one at end 0); the second face's spoke comes last.
+            let ring = if ha < hb {
+                [a as usize, c0, b as usize, c1]
+            } else {
+                [c0, b as usize, a as usize, c1]
+            };
+            let children = |f: usize| {
+                let fe = p.face_edges(f);
+                let e = e as u32;
+                let i = if let [x0, x1, x2, x3] = *fe {
+                    // A quad (every level after the first): its edges are distinct.
+                    debug_assert!([x0, x1, x2, x3].contains(&e));
+                    usize::from(x1 == e) + 2 * usize::from(x2 == e) + 3 * usize::from(x3 == e)
+                } else {
+                    fe.iter().position(|&x| x == e).unwrap_or(0)
+                };
+                let o = first_corner(p, f);
+                if i + 1 == fe.len() {
+                    [o, o + i]
+                } else {
+                    [o + i, o + i + 1]
+                }
+            };
+            let ([x0, x1], [y0, y1]) = (children(f0), children(f1));
+            acc.add_scaled(&src[v], wv);
+            for r in ring {
+                acc.add_scaled(&src[r], wr);
+            }
+            for f in [x0, x1, y0, y1] {
+                acc.add_scaled(&tail[f], wf);
+            }
+        } else {
+            let f = v - nvp - nep;
+            let fe = p.face_edges(f);
+            let n = fe.len();
+            if !(3..CACHED_VALENCE).contains(&n) {
+                return None;
+            }
+            let [wv, wr, wf] = self.fast.face_point_vertex[n]?;
+            let o = first_corner(p, f);
+            // Spokes in scan order: at m_0, at m_{n-1} (the first face's closing spoke), then
+            // at m_1 .. m_{n-2}.
+            acc.add_scaled(&src[v], wv);
+            acc.add_scaled(&src[nvp + fe[0] as usize], wr);
+            acc.add_scaled(&src[nvp + fe[n - 1] as usize], wr);
+            for &x in &fe[1..n - 1] {
+                acc.add_scaled(&src[nvp + x as usize], wr);
+            }
+            for k in 0..n {
+                acc.add_scaled(&tail[o + k], wf);
+            }
+        }
+        Some(acc)
     }
 
     /// Number of trailing children the other stencils refer to ([`StencilTable::child_sources`]):
@@ -595,12 +790,16 @@ impl<'a> Level<'a> {
         s.b.clear();
         if j < nv {
             let v = j;
-            let edges = topo.vertex_edges(v);
-            let faces = if self.vertex_faces {
-                topo.vertex_faces(v)
+            let (edges, faces) = if let Some(c) = &self.coarser {
+                self.gather(c, v, &mut s.edges, &mut s.pairs);
+                s.faces.clear();
+                s.faces.extend(s.pairs.iter().map(|&(f, _)| f));
+                (&s.edges[..], &s.faces[..])
+            } else if self.vertex_faces {
+                (topo.vertex_edges(v), topo.vertex_faces(v))
             } else {
                 topo.vertex_faces_from_edges(v, &mut s.faces, &mut s.corners);
-                &s.faces[..]
+                (topo.vertex_edges(v), &s.faces[..])
             };
             if edges.is_empty() {
                 s.b.add(v as u32, 1.0);
@@ -685,12 +884,16 @@ impl<'a> Level<'a> {
                 };
                 let child_sharpness = if sharpness > 0.0 && self.ctx.creasing == Creasing::Chaikin {
                     [a, b].map(|w| {
+                        let ends = match &self.coarser {
+                            Some(c) => {
+                                self.gather(c, w as usize, &mut s.end_edges, &mut s.pairs);
+                                &s.end_edges[..]
+                            }
+                            None => topo.vertex_edges(w as usize),
+                        };
                         s.sharp.clear();
-                        s.sharp.extend(
-                            topo.vertex_edges(w as usize)
-                                .iter()
-                                .map(|&x| topo.edge_sharpness[x as usize]),
-                        );
+                        s.sharp
+                            .extend(ends.iter().map(|&x| topo.edge_sharpness[x as usize]));
                         child_edge_sharpness(self.ctx.creasing, sharpness, &s.sharp)
                     })
                 } else {
@@ -765,7 +968,62 @@ fn other_end(topo: &Topology, e: usize, v: u32) -> u32 {
     a ^ b ^ v
 }
 
+/// The first corner of face `f` in `face_vertices` / `face_edges` (no table read on a level
+/// of one face arity).
+#[inline(always)]
+fn first_corner(topo: &Topology, f: usize) -> usize {
+    match topo.face_arity as usize {
+        0 => topo.face_offsets[f] as usize,
+        a => a * f,
+    }
+}
+
 impl Level<'_> {
+    /// Prefetches for [`level_apply_from_coarser`]'s vertex points (see [`Level::prefetch`]):
+    /// the coarser tables that locate the sources of vertex child `far`, the sources of
+    /// vertex child `near` (children past the vertex points are ignored).
+    #[inline(always)]
+    fn prefetch_coarser<T>(&self, c: &Coarser, far: usize, near: usize, src: &[T], tail: &[T]) {
+        let p = c.topo;
+        let (nvp, nep) = (p.num_vertices as usize, p.num_edges());
+        if far < nvp {
+            for &e in p.vertex_edges(far) {
+                prefetch(c.halves.get(e as usize));
+                prefetch(p.edge_vertices.get(e as usize));
+            }
+        } else if far < nvp + nep {
+            let e = far - nvp;
+            prefetch(c.halves.get(e));
+            for &f in p.edge_faces(e) {
+                prefetch(p.face_edges.get(first_corner(p, f as usize)));
+            }
+        }
+        if near < nvp {
+            for &e in p.vertex_edges(near) {
+                prefetch(src.get(nvp + e as usize));
+            }
+            for (&f, &k) in p.vertex_faces(near).iter().zip(p.vertex_face_corners(near)) {
+                prefetch(tail.get(first_corner(p, f as usize) + k as usize));
+            }
+        } else if near < nvp + nep {
+            let e = near - nvp;
+            let [a, b] = p.edge_vertices[e];
+            prefetch(src.get(a as usize));
+            prefetch(src.get(b as usize));
+            for &f in p.edge_faces(e) {
+                prefetch(src.get(nvp + nep + f as usize));
+                let o = first_corner(p, f as usize);
+                prefetch(tail.get(o));
+                prefetch(tail.get(o + 2));
+            }
+        } else if near < self.nv {
+            let f = near - nvp - nep;
+            for &x in p.face_edges(f) {
+                prefetch(src.get(nvp + x as usize));
+            }
+        }
+    }
+
     /// Prefetches (a hint, no effect on results) for [`level_apply`]: the table entries that
     /// locate the sources of vertex or edge child `far` (its ring edges' ends, its edge's
     /// faces' corners), and the source values of child `near`, from the parent's `src` and the
@@ -774,9 +1032,16 @@ impl Level<'_> {
     fn prefetch<T>(&self, far: usize, near: usize, src: &[T], tail: &[T]) {
         let topo = self.topo;
         let (nv, ne) = (self.nv, self.ne);
+        let lean = self.coarser.as_ref();
+        if let Some(c) = lean {
+            // No vertex relations here: the vertex children's come from the coarser level.
+            self.prefetch_coarser(c, far, near, src, tail);
+        }
         if far < nv {
-            for &e in topo.vertex_edges(far) {
-                prefetch(topo.edge_vertices.get(e as usize));
+            if lean.is_none() {
+                for &e in topo.vertex_edges(far) {
+                    prefetch(topo.edge_vertices.get(e as usize));
+                }
             }
         } else if far < nv + ne && self.split == Split::Triangles {
             for &f in topo.edge_faces(far - nv) {
@@ -784,13 +1049,15 @@ impl Level<'_> {
             }
         }
         if near < nv {
-            for &e in topo.vertex_edges(near) {
-                let [a, b] = topo.edge_vertices[e as usize];
-                prefetch(src.get((a ^ b ^ near as u32) as usize));
-            }
-            if self.vertex_faces && !tail.is_empty() {
-                for &f in topo.vertex_faces(near) {
-                    prefetch(tail.get(f as usize));
+            if lean.is_none() {
+                for &e in topo.vertex_edges(near) {
+                    let [a, b] = topo.edge_vertices[e as usize];
+                    prefetch(src.get((a ^ b ^ near as u32) as usize));
+                }
+                if self.vertex_faces && !tail.is_empty() {
+                    for &f in topo.vertex_faces(near) {
+                        prefetch(tail.get(f as usize));
+                    }
                 }
             }
         } else if near < nv + ne {
@@ -832,6 +1099,11 @@ impl Level<'_> {
     fn fast_value<T: Interpolate>(&self, j: usize, src: &[T], tail: &[T]) -> Option<T> {
         let topo = self.topo;
         let (nv, ne) = (self.nv, self.ne);
+        if j < nv {
+            if let Some(c) = &self.coarser {
+                return self.coarser_vertex(c, j, src, tail);
+            }
+        }
         let mut acc = T::zero();
         if j < nv {
             let v = j;
@@ -1027,7 +1299,7 @@ impl Level<'_> {
 /// first-touched page costs more than computing a stencil (the bunny's three Catmull-Clark
 /// levels: the build spent 85% of its time in the kernel zeroing fresh pages).
 pub fn level_stencils(topo: &Topology, ctx: &LevelContext) -> StencilTable {
-    let level = Level::new(topo, ctx);
+    let level = Level::new(topo, ctx, None);
     let n_child = level.n_child;
     let mut offsets = vec![0u32; n_child + 1];
     offsets[1..]
@@ -1085,8 +1357,43 @@ pub fn level_stencils(topo: &Topology, ctx: &LevelContext) -> StencilTable {
 /// # Panics
 /// If `src.len()` is not the parent's vertex count.
 pub fn level_apply<T: Interpolate>(topo: &Topology, ctx: &LevelContext, src: &[T]) -> Vec<T> {
+    apply(topo, ctx, src, None)
+}
+
+/// [`level_apply`] on a level of a polygon split built without vertex relations
+/// ([`super::refine::refine_topology_without_vertex_relations`]), whose vertices' relations
+/// are read from the `coarser` level; bit-identical to [`level_apply`] on the same level with
+/// its relations.
+///
+/// # Panics
+/// If `src.len()` is not `topo`'s vertex count, or if `topo` has vertex relations.
+pub(crate) fn level_apply_from_coarser<T: Interpolate>(
+    topo: &Topology,
+    ctx: &LevelContext,
+    src: &[T],
+    coarser: Coarser,
+) -> Vec<T> {
+    apply(topo, ctx, src, Some(coarser))
+}
+
+/// Whether `rules` have the smooth-vertex recipe that [`level_apply_from_coarser`] reads
+/// from the coarser level (uniform nonzero ring and face weights, as Catmull-Clark's), so
+/// that a level without vertex relations evaluates its vertex points without the general
+/// path.
+pub(crate) fn has_coarser_recipes(rules: &dyn Rules) -> bool {
+    let fast = Fast::new(&MaskCache::new(rules));
+    (3..CACHED_VALENCE.min(9)).all(|n| fast.face_point_vertex[n].is_some())
+}
+
+/// [`level_apply`], with the coarser level of a level without vertex relations.
+fn apply<T: Interpolate>(
+    topo: &Topology,
+    ctx: &LevelContext,
+    src: &[T],
+    coarser: Option<Coarser>,
+) -> Vec<T> {
     assert_eq!(src.len(), topo.num_vertices as usize, "stencil source size");
-    let level = Level::new(topo, ctx);
+    let level = Level::new(topo, ctx, coarser);
     let value = |s: &mut Scratch, j: usize, tail: &[T]| {
         level.fast_value(j, src, tail).unwrap_or_else(|| {
             level.stencil(j, s);
@@ -1201,6 +1508,80 @@ mod tests {
             let direct = subdivide(&m, &o).unwrap();
             assert_eq!(table.positions, direct.positions, "{o:?}");
         }
+    }
+
+    /// A level built without vertex relations (the last level `subdivide` evaluates) gathers
+    /// from its coarser level exactly the relations the counting sorts list, and evaluates bit
+    /// for bit as the same level with them: on closed and open meshes, quads and mixed
+    /// polygons, with semi-sharp and infinitely sharp creases and corners, both creasings.
+    #[test]
+    fn a_level_without_vertex_relations_reads_them_from_the_coarser_level() {
+        let meshes = [
+            generate::torus(1.0, 0.4, 6, 5, true),
+            generate::disk(6),
+            generate::icosphere(1),
+            generate::grid(3, 3, false),
+            generate::pyramid(),
+        ];
+        let mut recipes = 0;
+        for (k, m) in meshes.into_iter().enumerate() {
+            for seed in 0..3u64 {
+                let m = if seed == 0 {
+                    m.clone()
+                } else {
+                    tagged(m.clone(), 7 * seed + k as u64)
+                };
+                for creasing in [Creasing::Uniform, Creasing::Chaikin] {
+                    let o = SubdivideOptions {
+                        scheme: Scheme::CatmullClark,
+                        levels: 3,
+                        boundary: BoundaryMode::OpenSubdiv,
+                        creasing,
+                        ..Default::default()
+                    };
+                    let r = Refinement::build(&m, &o, true).unwrap();
+                    let (coarse, full) = (&r.topologies[1], &r.topologies[2]);
+                    let (mut lite, halves) =
+                        super::super::refine::refine_topology_without_vertex_relations(coarse);
+                    super::super::child_sharpness(coarse, &mut lite, &halves, creasing);
+                    assert!(!lite.has_vertex_edges() && full.has_vertex_edges());
+                    assert_eq!(lite.edge_sharpness, full.edge_sharpness);
+                    assert_eq!(lite.vertex_sharpness, full.vertex_sharpness);
+                    assert_eq!(lite.vertex_kinds, full.vertex_kinds);
+                    let c = Coarser {
+                        topo: coarse,
+                        halves: &halves,
+                    };
+                    let p2 = &r.evaluate_levels(&m.positions).unwrap()[1];
+                    let rules = super::super::catmull_clark::CatmullClarkRules;
+                    let ctx = LevelContext {
+                        rules: &rules,
+                        creasing,
+                        positions: p2,
+                        features: None,
+                    };
+                    let level = Level::new(&lite, &ctx, Some(c));
+                    let (mut edges, mut pairs) = (Vec::new(), Vec::new());
+                    for v in 0..full.num_vertices as usize {
+                        level.gather(&c, v, &mut edges, &mut pairs);
+                        assert_eq!(edges, full.vertex_edges(v), "{k} {seed} vertex {v}");
+                        let faces: Vec<u32> = pairs.iter().map(|p| p.0).collect();
+                        let corners: Vec<u16> = pairs.iter().map(|p| p.1).collect();
+                        assert_eq!(faces, full.vertex_faces(v), "{k} {seed} vertex {v}");
+                        assert_eq!(corners, full.vertex_face_corners(v), "{k} {seed} {v}");
+                    }
+                    let want = level_apply(full, &ctx, p2);
+                    let got = level_apply_from_coarser(&lite, &ctx, p2, c);
+                    assert_eq!(got, want, "{k} {seed} {creasing:?}");
+                    // The recipe, not only the general path, is what ran on smooth vertices.
+                    let tail = &want[full.num_vertices as usize + full.num_edges()..];
+                    recipes += (0..full.num_vertices as usize)
+                        .filter(|&v| level.coarser_vertex(&c, v, p2, tail).is_some())
+                        .count();
+                }
+            }
+        }
+        assert!(recipes > 1000, "{recipes} vertices by the coarser recipe");
     }
 
     /// The direct path ([`level_apply`], used by `subdivide`) matches the stencil tables bit
