@@ -311,8 +311,9 @@ impl Refinement {
         // and whose input has no interior tags (`finest_tags` reads that level's vertex
         // edges). That level's vertex-face and vertex-edge tables are the largest of a
         // refinement's, and their counting sort its longest serial pass: the bunny's third
-        // Catmull-Clark level, 85-88 → 81-83 ms in alternated runs (level 1 → 2 34 → 26 ms,
-        // level 2 → 3 34 → 37 ms), peak memory 437 → 405 MB.
+        // Catmull-Clark level, 85-88 → 81-83 ms in alternated runs (level 1 → 2 34 → 26 ms;
+        // level 2 → 3 34 → 37-39 ms, its vertex points' reads being less local), peak memory
+        // 437 → 405 MB.
         let lite = split == Split::Polygons
             && !keep_stencils
             && !keep_topologies
