@@ -637,7 +637,7 @@ impl<'a> Level<'a> {
         pairs.sort_unstable();
     }
 
-    /// Child `j < nv`'s value on a level without vertex relations, by the coarser level's
+    /// Vertex child `v`'s value on a level without vertex relations, by the coarser level's
     /// recipe of a smooth interior Catmull-Clark vertex (the vertex, its ring in ascending
     /// edge order, the points of its faces in ascending order: the sequence
     /// [`Level::stencil`] builds from the gathered relations), or `None`.
@@ -1366,7 +1366,9 @@ pub fn level_apply<T: Interpolate>(topo: &Topology, ctx: &LevelContext, src: &[T
 /// its relations.
 ///
 /// # Panics
-/// If `src.len()` is not `topo`'s vertex count, or if `topo` has vertex relations.
+/// If `src.len()` is not `topo`'s vertex count, if `topo` has vertex relations, or if the
+/// rules do not split polygons or the coarser level's rings are ordered (its vertex faces
+/// must be in face order, as the refiner leaves them past level 0).
 pub(crate) fn level_apply_from_coarser<T: Interpolate>(
     topo: &Topology,
     ctx: &LevelContext,
