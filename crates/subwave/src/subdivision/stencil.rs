@@ -491,10 +491,9 @@ struct Scratch {
     /// A vertex's faces and corners, gathered on a lean level (no vertex-face table).
     faces: Vec<u32>,
     corners: Vec<u16>,
-    /// A vertex's edges and a crease end's edges, gathered on a level without vertex
-    /// relations ([`Coarser`]).
+    /// A vertex's edges (or a crease end's), gathered on a level without vertex relations
+    /// ([`Coarser`]).
     edges: Vec<u32>,
-    end_edges: Vec<u32>,
     /// Sorting space of a gathered vertex's faces and corners.
     pairs: Vec<(u32, u16)>,
 }
@@ -886,8 +885,8 @@ impl<'a> Level<'a> {
                     [a, b].map(|w| {
                         let ends = match &self.coarser {
                             Some(c) => {
-                                self.gather(c, w as usize, &mut s.end_edges, &mut s.pairs);
-                                &s.end_edges[..]
+                                self.gather(c, w as usize, &mut s.edges, &mut s.pairs);
+                                &s.edges[..]
                             }
                             None => topo.vertex_edges(w as usize),
                         };
