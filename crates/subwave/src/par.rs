@@ -62,7 +62,8 @@ pub(crate) fn par_fill<T, S>(
 
 /// `(0..n).map(..)` as a vector whose last `late` elements are computed first
 /// (`tail(&mut state, k)` for element `n - late + k`) and whose other elements may read them
-/// (`head(&mut state, j, tail)`), in parallel chunks of `chunk` elements.
+/// (`head(&mut state, j, tail)`), in parallel chunks of `chunk` elements: [`par_tail`], then
+/// [`par_head`].
 ///
 /// # Panics
 /// If `late > n`, if `chunk` is 0, or if a closure panics (the panic propagates; nothing is
@@ -78,17 +79,101 @@ pub(crate) fn par_vec_tail_first<T, S>(
 where
     T: Send + Sync,
 {
-    assert!(late <= n, "par_vec_tail_first: {late} late elements of {n}");
-    let mut out = Vec::with_capacity(n);
-    let (h, t) = out.spare_capacity_mut()[..n].split_at_mut(n - late);
-    par_fill(t, chunk, &init, tail);
-    // SAFETY: `par_fill` wrote every slot of `t` (a panic propagates before this line), and
-    // `MaybeUninit<T>` has the layout of `T`.
+    par_head(par_tail(n, late, chunk, &init, tail), chunk, init, head)
+}
+
+/// A vector of `n` elements of which only the last `late` are computed yet ([`par_tail`]);
+/// [`par_head`] computes the others. Dropped before that, it drops the computed elements
+/// and frees its buffer.
+pub(crate) struct Tail<T> {
+    /// Capacity at least `n`, length 0; slots `n - late..n` are initialised.
+    buf: Vec<T>,
+    n: usize,
+    late: usize,
+}
+
+impl<T> Tail<T> {
+    /// The length of the finished vector.
+    pub(crate) fn len(&self) -> usize {
+        self.n
+    }
+
+    /// The number of elements computed.
+    pub(crate) fn late(&self) -> usize {
+        self.late
+    }
+
+    /// The computed elements, `n - late..n` of the finished vector.
+    #[cfg(test)]
+    pub(crate) fn computed(&self) -> &[T] {
+        // SAFETY: the buffer's capacity is at least `n`, and `par_tail` wrote every slot of
+        // `n - late..n` before returning the `Tail`.
+        unsafe { std::slice::from_raw_parts(self.buf.as_ptr().add(self.n - self.late), self.late) }
+    }
+}
+
+impl<T> Drop for Tail<T> {
+    fn drop(&mut self) {
+        // SAFETY: the slots `n - late..n` of the buffer's capacity are initialised (see
+        // `computed`) and dropped once, here; `par_head` takes the buffer out without
+        // running this.
+        unsafe {
+            let tail = self.buf.as_mut_ptr().add(self.n - self.late);
+            std::ptr::drop_in_place(std::ptr::slice_from_raw_parts_mut(tail, self.late));
+        }
+    }
+}
+
+/// The last `late` of `n` elements (`tail(&mut state, k)` for element `n - late + k`),
+/// computed in parallel chunks of `chunk`, in a buffer of `n` for [`par_head`] to finish.
+///
+/// # Panics
+/// If `late > n`, if `chunk` is 0, or if `tail` panics.
+pub(crate) fn par_tail<T, S>(
+    n: usize,
+    late: usize,
+    chunk: usize,
+    init: impl Fn() -> S + Sync + Send,
+    tail: impl Fn(&mut S, usize) -> T + Sync + Send,
+) -> Tail<T>
+where
+    T: Send,
+{
+    assert!(late <= n, "par_tail: {late} late elements of {n}");
+    let mut buf = Vec::with_capacity(n);
+    par_fill(
+        &mut buf.spare_capacity_mut()[n - late..n],
+        chunk,
+        init,
+        tail,
+    );
+    Tail { buf, n, late }
+}
+
+/// Finishes `t` ([`par_tail`]): element `j < n - late` is `head(&mut state, j, tail)`,
+/// `tail` being the elements computed already; in parallel chunks of `chunk`.
+///
+/// # Panics
+/// If `chunk` is 0, or if `head` panics.
+pub(crate) fn par_head<T, S>(
+    t: Tail<T>,
+    chunk: usize,
+    init: impl Fn() -> S + Sync + Send,
+    head: impl Fn(&mut S, usize, &[T]) -> T + Sync + Send,
+) -> Vec<T>
+where
+    T: Send + Sync,
+{
+    // Taken apart without `Tail`'s drop: the elements move into the finished vector.
+    let mut t = std::mem::ManuallyDrop::new(t);
+    let (mut buf, n, late) = (std::mem::take(&mut t.buf), t.n, t.late);
+    let (h, t) = buf.spare_capacity_mut()[..n].split_at_mut(n - late);
+    // SAFETY: `par_tail` wrote every slot of `t`, and `MaybeUninit<T>` has the layout of `T`.
     let t: &[T] = unsafe { std::slice::from_raw_parts(t.as_ptr().cast::<T>(), t.len()) };
-    par_fill(h, chunk, &init, |s, j| head(s, j, t));
+    par_fill(h, chunk, init, |s, j| head(s, j, t));
     // SAFETY: both fills wrote their slots, which cover the first `n`.
-    unsafe { out.set_len(n) };
-    out
+    unsafe { buf.set_len(n) };
+    buf
 }
 
 /// Uninitialised slots written front to back: the writer of one part of a vector built by
@@ -291,6 +376,26 @@ mod tests {
                 .collect();
             assert_eq!(v, want, "{n} {late} {chunk}");
         }
+    }
+
+    /// A tail computed apart ([`super::par_tail`]) is what [`super::par_head`] reads and
+    /// keeps; a tail dropped unfinished frees its buffer.
+    #[test]
+    fn a_tail_finishes_later() {
+        let t = super::par_tail(10_000, 3_000, 64, || (), |_, k| (7_000 + k) as u64 * 2);
+        assert_eq!((t.len(), t.late()), (10_000, 3_000));
+        assert_eq!(t.computed()[..2], [14_000, 14_002]);
+        let v = super::par_head(t, 64, || (), |_, j, tail: &[u64]| j as u64 + tail[0]);
+        let want: Vec<u64> = (0..10_000u64)
+            .map(|j| if j < 7_000 { j + 14_000 } else { 2 * j })
+            .collect();
+        assert_eq!(v, want);
+        // Unfinished, its computed elements are dropped (each `Arc` clone released).
+        let rc = std::sync::Arc::new(());
+        let t = super::par_tail(100, 10, 8, || (), |_, _| rc.clone());
+        assert_eq!(std::sync::Arc::strong_count(&rc), 11);
+        drop(t);
+        assert_eq!(std::sync::Arc::strong_count(&rc), 1);
     }
 
     #[test]

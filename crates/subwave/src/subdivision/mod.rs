@@ -322,7 +322,13 @@ impl Refinement {
             && stencil::has_coarser_recipes(rules.as_ref());
         // The level before a level without vertex relations, and the halves of its edges.
         let mut coarser: Option<(Topology, Vec<[u32; 2]>)> = None;
+        // The face points of the level after a level without vertex relations, computed
+        // with the values of that level (`stencil::grandchild_face_points`).
+        let mut face_points = None;
         for level in 0..opts.levels {
+            // Whether this level's child is built without vertex relations.
+            let lite_child = level + 2 == opts.levels && lite && !topo.rings_ordered;
+            let pending = face_points.take();
             let ctx = LevelContext {
                 rules: rules.as_ref(),
                 creasing: opts.creasing,
@@ -332,17 +338,26 @@ impl Refinement {
             let values = || {
                 if keep_stencils {
                     let table = level_stencils(&topo, &ctx);
-                    (table.apply(&positions), Some(table))
+                    (table.apply(&positions), Some(table), None)
                 } else if let Some((c, halves)) = &coarser {
                     let c = stencil::Coarser { topo: c, halves };
-                    let v = stencil::level_apply_from_coarser(&topo, &ctx, &positions, c);
-                    (v, None)
+                    let v = stencil::level_apply_from_coarser(&topo, &ctx, &positions, c, pending);
+                    (v, None, None)
                 } else {
-                    (level_apply(&topo, &ctx, &positions), None)
+                    let v = level_apply(&topo, &ctx, &positions);
+                    // The next level's face points need only this level's tables: computed
+                    // here, they leave the next level less to do while this one waits for
+                    // its child's topology (the longer of the two).
+                    let next = if lite_child {
+                        stencil::grandchild_face_points(&topo, &v)
+                    } else {
+                        None
+                    };
+                    (v, None, next)
                 }
             };
             let child = || {
-                if level + 2 == opts.levels && lite && !topo.rings_ordered {
+                if lite_child {
                     let (mut child, halves) =
                         refine::refine_topology_without_vertex_relations(&topo);
                     child_sharpness(&topo, &mut child, &halves, opts.creasing);
@@ -367,13 +382,14 @@ impl Refinement {
             };
             // The child values and the child topology depend only on the parent: overlap them,
             // unless the (large) stencil tables are kept, to bound the peak memory.
-            let ((next_positions, table), next) = if keep_stencils {
+            let ((next_positions, table, next_face_points), next) = if keep_stencils {
                 let values = values();
                 (values, child())
             } else {
                 rayon::join(values, child)
             };
             positions = next_positions;
+            face_points = next_face_points;
             stencils.extend(table);
             let parent = match next {
                 Next::Child(child, child_features, halves) => {
