@@ -82,14 +82,16 @@ where
     par_head(par_tail(n, late, chunk, &init, tail), chunk, init, head)
 }
 
-/// A vector of `n` elements of which only the last `late` are computed yet ([`par_tail`]);
-/// [`par_head`] computes the others. Dropped before that, it drops the computed elements
-/// and frees its buffer.
+/// A vector of `n` elements of which only the last `late` ([`par_tail`]) and possibly a
+/// range before them ([`Tail::fill_range`]) are computed yet; [`par_head`] computes the
+/// others. Dropped before that, it drops the computed elements and frees its buffer.
 pub(crate) struct Tail<T> {
-    /// Capacity at least `n`, length 0; slots `n - late..n` are initialised.
+    /// Capacity at least `n`, length 0; slots `n - late..n` and `done` are initialised.
     buf: Vec<T>,
     n: usize,
     late: usize,
+    /// Slots before the tail computed already (empty if none).
+    done: std::ops::Range<usize>,
 }
 
 impl<T> Tail<T> {
@@ -103,6 +105,39 @@ impl<T> Tail<T> {
         self.late
     }
 
+    /// Computes the elements `range` before the tail (once) as `f(&mut state, j, tail)`,
+    /// `tail` being the elements `n - late..n`, in parallel chunks of `chunk`.
+    ///
+    /// # Panics
+    /// If a range was computed already, if `range` reaches into the tail, if `chunk` is 0, or
+    /// if `f` panics (the elements of `range` computed before it are then not dropped).
+    pub(crate) fn fill_range<S>(
+        &mut self,
+        range: std::ops::Range<usize>,
+        chunk: usize,
+        init: impl Fn() -> S + Sync + Send,
+        f: impl Fn(&mut S, usize, &[T]) -> T + Sync + Send,
+    ) where
+        T: Send + Sync,
+    {
+        assert!(
+            self.done.is_empty() && range.start <= range.end && range.end <= self.n - self.late,
+            "fill_range: {range:?} of {} elements before a tail of {}, {:?} done",
+            self.n,
+            self.late,
+            self.done
+        );
+        let (h, t) = self.buf.spare_capacity_mut()[..self.n].split_at_mut(self.n - self.late);
+        // SAFETY: `par_tail` wrote every slot of `t`, and `MaybeUninit<T>` has the layout of
+        // `T`.
+        let t: &[T] = unsafe { std::slice::from_raw_parts(t.as_ptr().cast::<T>(), t.len()) };
+        let start = range.start;
+        par_fill(&mut h[range.clone()], chunk, init, |s, k| {
+            f(s, start + k, t)
+        });
+        self.done = range;
+    }
+
     /// The computed elements, `n - late..n` of the finished vector.
     #[cfg(test)]
     pub(crate) fn computed(&self) -> &[T] {
@@ -114,12 +149,15 @@ impl<T> Tail<T> {
 
 impl<T> Drop for Tail<T> {
     fn drop(&mut self) {
-        // SAFETY: the slots `n - late..n` of the buffer's capacity are initialised (see
-        // `computed`) and dropped once, here; `par_head` takes the buffer out without
-        // running this.
+        // SAFETY: the slots `n - late..n` and `done` of the buffer's capacity are initialised
+        // (`par_tail`, `fill_range`) and dropped once, here; `par_head` takes the buffer out
+        // without running this.
         unsafe {
-            let tail = self.buf.as_mut_ptr().add(self.n - self.late);
+            let base = self.buf.as_mut_ptr();
+            let tail = base.add(self.n - self.late);
             std::ptr::drop_in_place(std::ptr::slice_from_raw_parts_mut(tail, self.late));
+            let done = base.add(self.done.start);
+            std::ptr::drop_in_place(std::ptr::slice_from_raw_parts_mut(done, self.done.len()));
         }
     }
 }
@@ -147,11 +185,17 @@ where
         init,
         tail,
     );
-    Tail { buf, n, late }
+    Tail {
+        buf,
+        n,
+        late,
+        done: 0..0,
+    }
 }
 
-/// Finishes `t` ([`par_tail`]): element `j < n - late` is `head(&mut state, j, tail)`,
-/// `tail` being the elements computed already; in parallel chunks of `chunk`.
+/// Finishes `t` ([`par_tail`]): element `j < n - late` outside the range computed already
+/// ([`Tail::fill_range`]) is `head(&mut state, j, tail)`, `tail` being the elements
+/// `n - late..n`; in parallel chunks of `chunk`.
 ///
 /// # Panics
 /// If `chunk` is 0, or if `head` panics.
@@ -166,12 +210,16 @@ where
 {
     // Taken apart without `Tail`'s drop: the elements move into the finished vector.
     let mut t = std::mem::ManuallyDrop::new(t);
-    let (mut buf, n, late) = (std::mem::take(&mut t.buf), t.n, t.late);
+    let (mut buf, n, late, done) = (std::mem::take(&mut t.buf), t.n, t.late, t.done.clone());
     let (h, t) = buf.spare_capacity_mut()[..n].split_at_mut(n - late);
     // SAFETY: `par_tail` wrote every slot of `t`, and `MaybeUninit<T>` has the layout of `T`.
     let t: &[T] = unsafe { std::slice::from_raw_parts(t.as_ptr().cast::<T>(), t.len()) };
-    par_fill(h, chunk, init, |s, j| head(s, j, t));
-    // SAFETY: both fills wrote their slots, which cover the first `n`.
+    let (before, rest) = h.split_at_mut(done.start);
+    par_fill(before, chunk, &init, |s, j| head(s, j, t));
+    let after = &mut rest[done.len()..];
+    par_fill(after, chunk, &init, |s, k| head(s, done.end + k, t));
+    // SAFETY: the fills wrote the slots around `done`, written before, and the tail: the
+    // first `n`.
     unsafe { buf.set_len(n) };
     buf
 }
@@ -390,10 +438,33 @@ mod tests {
             .map(|j| if j < 7_000 { j + 14_000 } else { 2 * j })
             .collect();
         assert_eq!(v, want);
+        // A range before the tail, computed apart, is kept.
+        let mut t = super::par_tail(10_000, 3_000, 64, || (), |_, k| (7_000 + k) as u64 * 2);
+        t.fill_range(
+            100..5_000,
+            64,
+            || (),
+            |_, j, tail: &[u64]| j as u64 + tail[1],
+        );
+        let v = super::par_head(t, 64, || (), |_, j, _: &[u64]| j as u64);
+        let want: Vec<u64> = (0..10_000u64)
+            .map(|j| match j {
+                100..5_000 => j + 14_002,
+                7_000.. => 2 * j,
+                _ => j,
+            })
+            .collect();
+        assert_eq!(v, want);
         // Unfinished, its computed elements are dropped (each `Arc` clone released).
         let rc = std::sync::Arc::new(());
-        let t = super::par_tail(100, 10, 8, || (), |_, _| rc.clone());
-        assert_eq!(std::sync::Arc::strong_count(&rc), 11);
+        let mut t = super::par_tail(100, 10, 8, || (), |_, _| rc.clone());
+        t.fill_range(
+            20..25,
+            8,
+            || (),
+            |_, _, _: &[std::sync::Arc<()>]| rc.clone(),
+        );
+        assert_eq!(std::sync::Arc::strong_count(&rc), 16);
         drop(t);
         assert_eq!(std::sync::Arc::strong_count(&rc), 1);
     }

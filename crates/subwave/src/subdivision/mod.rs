@@ -322,8 +322,9 @@ impl Refinement {
             && stencil::has_coarser_recipes(rules.as_ref());
         // The level before a level without vertex relations, and the halves of its edges.
         let mut coarser: Option<(Topology, Vec<[u32; 2]>)> = None;
-        // The face points of the level after a level without vertex relations, computed
-        // with the values of that level (`stencil::grandchild_face_points`).
+        // Points of the level after a level without vertex relations computed with that
+        // level's values (its face points and their face points' vertex points,
+        // `stencil::grandchild_points`).
         let mut face_points = None;
         for level in 0..opts.levels {
             // Whether this level's child is built without vertex relations.
@@ -345,11 +346,12 @@ impl Refinement {
                     (v, None, None)
                 } else {
                     let v = level_apply(&topo, &ctx, &positions);
-                    // The next level's face points need only this level's tables: computed
-                    // here, they leave the next level less to do while this one waits for
-                    // its child's topology (the longer of the two).
+                    // The next level's face points (and the vertex points of this level's
+                    // face points) need only this level's tables: computed here, they leave
+                    // the next level less to do while this one waits for its child's topology
+                    // (the longer of the two).
                     let next = if lite_child {
-                        stencil::grandchild_face_points(&topo, &v)
+                        stencil::grandchild_points(&topo, rules.as_ref(), &v)
                     } else {
                         None
                     };

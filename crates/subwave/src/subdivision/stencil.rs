@@ -1363,7 +1363,7 @@ pub fn level_apply<T: Interpolate>(topo: &Topology, ctx: &LevelContext, src: &[T
 /// ([`super::refine::refine_topology_without_vertex_relations`]), whose vertices' relations
 /// are read from the `coarser` level; bit-identical to [`level_apply`] on the same level with
 /// its relations. `face_points`, if given, are the child face points computed already
-/// ([`grandchild_face_points`] of the coarser level), which it finishes.
+/// ([`grandchild_points`] of the coarser level), which it finishes.
 ///
 /// # Panics
 /// If `src.len()` is not `topo`'s vertex count, if `topo` has vertex relations, if the rules
@@ -1387,18 +1387,24 @@ pub(crate) fn level_apply_from_coarser<T: Interpolate>(
 /// relations, whose coarser level is `parent`) to finish. Bit-identical to the face points it
 /// would compute: by the ordering contract of [`super::refine`], child face `4k + i` of
 /// parent quad `k` is `(v_i, m_i, c, m_{i-1})`, and its face point sums a quarter of each
-/// corner in that order, from zero. `None` unless `parent` is a quad mesh.
+/// corner in that order, from zero. With them, where `rules` have the smooth recipe
+/// ([`has_coarser_recipes`]), the grandchild points of the child's face points (the range
+/// `V + E..V + E + F` of the grandchild level; smooth valence-4 vertices whose spokes and
+/// faces follow from the contract, summed as `Level::coarser_vertex` sums them). `None`
+/// unless `parent` is a quad mesh.
 ///
 /// `subdivide` computes them with the child's values, while the child's topology (the longer
-/// task of that level) is still being built: the bunny's third Catmull-Clark level, medians
-/// 77.1–78.0 → 72.1–73.1 ms in four alternations (level 1 → 2 unchanged at 24–25 ms, its
-/// values 14 → 19 ms; level 2 → 3 34 → 31–32 ms).
+/// task of that level) is still being built. The bunny's third Catmull-Clark level, medians of
+/// 21 runs in four alternations: the face points, 77.1–78.0 → 72.1–73.1 ms (level 1 → 2
+/// unchanged at 24–25 ms, its values 14 → 19 ms; level 2 → 3 34 → 31–32 ms); the vertex
+/// points of the child's face points besides, 75.1–76.4 → 72.2–73.6 ms.
 ///
 /// # Panics
 /// If `child.len()` is not the child level's vertex count (`parent`'s vertices, edges and
 /// faces).
-pub(crate) fn grandchild_face_points<T: Interpolate>(
+pub(crate) fn grandchild_points<T: Interpolate>(
     parent: &Topology,
+    rules: &dyn Rules,
     child: &[T],
 ) -> Option<Tail<T>> {
     if parent.face_arity != 4 {
@@ -1416,7 +1422,7 @@ pub(crate) fn grandchild_face_points<T: Interpolate>(
     let n = child.len() + 2 * ne + nfc + nfc;
     let fe = &parent.face_edges;
     let fv = &parent.face_vertices;
-    Some(crate::par::par_tail(
+    let mut t = crate::par::par_tail(
         n,
         nfc,
         CHUNK,
@@ -1440,7 +1446,32 @@ pub(crate) fn grandchild_face_points<T: Interpolate>(
             }
             acc
         },
-    ))
+    );
+    // The vertex points of the child's face points, smooth valence-4 vertices: the recipe of
+    // `Level::coarser_vertex` (the vertex, its spokes in scan order m_0, m_3, m_1, m_2, its
+    // four faces' points).
+    if let Some([wv, wr, wf]) = Fast::new(&MaskCache::new(rules)).face_point_vertex[4] {
+        let first = nv + ne;
+        t.fill_range(
+            first..first + nf,
+            CHUNK,
+            || (),
+            |_, v, faces| {
+                let k = v - first;
+                let e = &fe[4 * k..4 * k + 4];
+                let mut acc = T::zero();
+                acc.add_scaled(&child[v], wv);
+                for x in [e[0], e[3], e[1], e[2]] {
+                    acc.add_scaled(&child[nv + x as usize], wr);
+                }
+                for f in &faces[4 * k..4 * k + 4] {
+                    acc.add_scaled(f, wf);
+                }
+                acc
+            },
+        );
+    }
+    Some(t)
 }
 
 /// Whether `rules` have the smooth-vertex recipe that [`level_apply_from_coarser`] reads
@@ -1647,7 +1678,7 @@ mod tests {
                     assert_eq!(got, want, "{k} {seed} {creasing:?}");
                     // The face points computed from the coarser level, before this one's
                     // tables, are this level's, and finish into the same values.
-                    let early = grandchild_face_points(coarse, p2).expect("a quad mesh");
+                    let early = grandchild_points(coarse, &rules, p2).expect("a quad mesh");
                     let faces = &want[full.num_vertices as usize + full.num_edges()..];
                     assert_eq!(early.computed(), faces, "{k} {seed} {creasing:?}");
                     let got = level_apply_from_coarser(&lite, &ctx, p2, c, Some(early));
