@@ -100,7 +100,7 @@ impl<T> Tail<T> {
         self.n
     }
 
-    /// The number of elements computed.
+    /// The number of tail elements, computed by [`par_tail`].
     pub(crate) fn late(&self) -> usize {
         self.late
     }
@@ -426,8 +426,9 @@ mod tests {
         }
     }
 
-    /// A tail computed apart ([`super::par_tail`]) is what [`super::par_head`] reads and
-    /// keeps; a tail dropped unfinished frees its buffer.
+    /// A tail computed apart ([`super::par_tail`]), and a range before it
+    /// ([`super::Tail::fill_range`]), are what [`super::par_head`] reads and keeps; a `Tail`
+    /// dropped unfinished drops the elements it computed.
     #[test]
     fn a_tail_finishes_later() {
         let t = super::par_tail(10_000, 3_000, 64, || (), |_, k| (7_000 + k) as u64 * 2);

@@ -1362,14 +1362,15 @@ pub fn level_apply<T: Interpolate>(topo: &Topology, ctx: &LevelContext, src: &[T
 /// [`level_apply`] on a level of a polygon split built without vertex relations
 /// ([`super::refine::refine_topology_without_vertex_relations`]), whose vertices' relations
 /// are read from the `coarser` level; bit-identical to [`level_apply`] on the same level with
-/// its relations. `face_points`, if given, are the child face points computed already
-/// ([`grandchild_points`] of the coarser level), which it finishes.
+/// its relations. `face_points`, if given, are the values computed already
+/// ([`grandchild_points`] of the coarser level: the face points, perhaps with a range of
+/// vertex points), which it finishes.
 ///
 /// # Panics
 /// If `src.len()` is not `topo`'s vertex count, if `topo` has vertex relations, if the rules
 /// do not split polygons or the coarser level's rings are ordered (its vertex faces must be in
-/// face order, as the refiner leaves them past level 0), or if `face_points` has another size
-/// than this level's children or face points.
+/// face order, as the refiner leaves them past level 0), or if `face_points` was sized for
+/// another level.
 pub(crate) fn level_apply_from_coarser<T: Interpolate>(
     topo: &Topology,
     ctx: &LevelContext,
@@ -1391,7 +1392,7 @@ pub(crate) fn level_apply_from_coarser<T: Interpolate>(
 /// ([`has_coarser_recipes`]), the grandchild points of the child's face points (the range
 /// `V + E..V + E + F` of the grandchild level; smooth valence-4 vertices whose spokes and
 /// faces follow from the contract, summed as `Level::coarser_vertex` sums them). `None`
-/// unless `parent` is a quad mesh.
+/// unless `rules` split polygons and `parent` is a quad mesh.
 ///
 /// `subdivide` computes them with the child's values, while the child's topology (the longer
 /// task of that level) is still being built. The bunny's third Catmull-Clark level, medians of
@@ -1407,7 +1408,7 @@ pub(crate) fn grandchild_points<T: Interpolate>(
     rules: &dyn Rules,
     child: &[T],
 ) -> Option<Tail<T>> {
-    if parent.face_arity != 4 {
+    if parent.face_arity != 4 || rules.split() != Split::Polygons {
         return None;
     }
     let (nv, ne, nf) = (
