@@ -325,11 +325,11 @@ impl Refinement {
         // Points of the level after a level without vertex relations computed with that
         // level's values (its face points and their face points' vertex points,
         // `stencil::grandchild_points`).
-        let mut face_points = None;
+        let mut early = None;
         for level in 0..opts.levels {
             // Whether this level's child is built without vertex relations.
             let lite_child = level + 2 == opts.levels && lite && !topo.rings_ordered;
-            let pending = face_points.take();
+            let pending = early.take();
             let ctx = LevelContext {
                 rules: rules.as_ref(),
                 creasing: opts.creasing,
@@ -384,14 +384,14 @@ impl Refinement {
             };
             // The child values and the child topology depend only on the parent: overlap them,
             // unless the (large) stencil tables are kept, to bound the peak memory.
-            let ((next_positions, table, next_face_points), next) = if keep_stencils {
+            let ((next_positions, table, next_early), next) = if keep_stencils {
                 let values = values();
                 (values, child())
             } else {
                 rayon::join(values, child)
             };
             positions = next_positions;
-            face_points = next_face_points;
+            early = next_early;
             stencils.extend(table);
             let parent = match next {
                 Next::Child(child, child_features, halves) => {

@@ -1362,23 +1362,23 @@ pub fn level_apply<T: Interpolate>(topo: &Topology, ctx: &LevelContext, src: &[T
 /// [`level_apply`] on a level of a polygon split built without vertex relations
 /// ([`super::refine::refine_topology_without_vertex_relations`]), whose vertices' relations
 /// are read from the `coarser` level; bit-identical to [`level_apply`] on the same level with
-/// its relations. `face_points`, if given, are the values computed already
+/// its relations. `early`, if given, are the values computed already
 /// ([`grandchild_points`] of the coarser level: the face points, perhaps with a range of
 /// vertex points), which it finishes.
 ///
 /// # Panics
 /// If `src.len()` is not `topo`'s vertex count, if `topo` has vertex relations, if the rules
 /// do not split polygons or the coarser level's rings are ordered (its vertex faces must be in
-/// face order, as the refiner leaves them past level 0), or if `face_points` was sized for
+/// face order, as the refiner leaves them past level 0), or if `early` was sized for
 /// another level.
 pub(crate) fn level_apply_from_coarser<T: Interpolate>(
     topo: &Topology,
     ctx: &LevelContext,
     src: &[T],
     coarser: Coarser,
-    face_points: Option<Tail<T>>,
+    early: Option<Tail<T>>,
 ) -> Vec<T> {
-    apply(topo, ctx, src, Some(coarser), face_points)
+    apply(topo, ctx, src, Some(coarser), early)
 }
 
 /// The face points of the level after the child of `parent`, a quad mesh refined by a polygon
@@ -1490,7 +1490,7 @@ fn apply<T: Interpolate>(
     ctx: &LevelContext,
     src: &[T],
     coarser: Option<Coarser>,
-    face_points: Option<Tail<T>>,
+    early: Option<Tail<T>>,
 ) -> Vec<T> {
     assert_eq!(src.len(), topo.num_vertices as usize, "stencil source size");
     let level = Level::new(topo, ctx, coarser);
@@ -1513,8 +1513,8 @@ fn apply<T: Interpolate>(
         }
         value(s, j, tail)
     };
-    if let Some(t) = face_points {
-        assert_eq!((t.len(), t.late()), (n, late), "precomputed face points");
+    if let Some(t) = early {
+        assert_eq!((t.len(), t.late()), (n, late), "points computed early");
         return crate::par::par_head(t, CHUNK, Scratch::default, head);
     }
     if late == 0 {
