@@ -5,6 +5,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Result};
 use clap::ValueEnum;
+use subwave::codec::normal_line::SnapOptions;
 use subwave::codec::prepare::{prepare, PrepareOptions};
 use subwave::codec::progressive::{encode, inspect, Layout, Wavelet};
 use subwave::codec::quantize::ComponentMode;
@@ -125,6 +126,7 @@ impl PrepareArgs {
             force_remesh: false,
             fit: !self.on_surface,
             raise_levels: true,
+            snap: None,
         }
     }
 }
@@ -150,9 +152,15 @@ impl From<RemeshArg> for Option<bool> {
     }
 }
 
+/// Bits of the position grid of a lossless stream without `--bits`.
+const LOSSLESS_BITS: u32 = 12;
+
 /// Runs `subwave encode`.
 pub fn run(args: &EncodeArgs) -> Result<()> {
     let name = print::path(&args.mesh);
+    if let (true, Some(b @ 25..)) = (args.lossless, args.bits) {
+        bail!("--bits {b}: a lossless stream's position grid has at most 24 bits");
+    }
     let mut mesh = read_mesh(&args.mesh, args.format)?;
     mesh.remove_unreferenced();
     let input_vertices = mesh.num_vertices();
@@ -162,8 +170,15 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
         args.wavelet,
         Some(WaveletArg::Linear | WaveletArg::Cubic)
     ));
-    // A lossless stream codes every vertex of the remesh: more levels only make it larger.
+    // A lossless stream codes every vertex of the remesh: more levels only make it larger;
+    // its normal vertices go onto the lossless coder's normal lines of the stream's grid.
     popts.raise_levels = !args.lossless;
+    if args.lossless {
+        popts.snap = Some(SnapOptions {
+            bits: args.bits.unwrap_or(LOSSLESS_BITS),
+            ..SnapOptions::default()
+        });
+    }
     let prepared = crate::progress::with_bar("remesh", false, |cb| prepare(&mesh, &popts, cb))
         .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let prepare_ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -204,6 +219,9 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     }
     if let Some(n) = &prepared.normal {
         println!("{}", print::normal_stats(n));
+        if let Some(s) = &prepared.snap {
+            println!("lossless grid: {}", print::snap_stats(s));
+        }
     } else if let Some(f) = &prepared.fit {
         println!("MAPS remesh: {}", print::fit_stats(f));
     }
@@ -213,7 +231,10 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
         );
     }
     if let Some(rms) = prepared.remesh_rms {
-        println!("{}", print::remesh_distance(rms, mesh.diagonal()));
+        println!(
+            "{}",
+            print::remesh_distance(rms, mesh.diagonal(), !args.lossless)
+        );
     }
     if let Some(line) = print::input_distance(&prepared, mesh.diagonal()) {
         println!("{line}");
@@ -259,7 +280,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
         opts.bits = b;
         opts.max_rms = None;
     } else if args.lossless {
-        opts.bits = 12;
+        opts.bits = LOSSLESS_BITS;
     }
     opts.input_vertices = Some(input_vertices as u32);
     opts.level_exponent = args.level_exponent;
@@ -275,7 +296,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     let mut out = stdout.lock();
     writeln!(
         out,
-        "{name}: {}{} levels over {} base vertices / {} faces -> {} vertices; {} wavelet{}{}, {} frames, {} bit planes, {} layout{}",
+        "{name}: {}{} levels over {} base vertices / {} faces -> {} vertices; {} wavelet{}{}, {} frames, {}, {} layout{}",
         if remeshed { "remeshed, " } else { "" },
         h.levels(),
         info.base_vertices,
@@ -288,7 +309,11 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
             DetailFrame::Local => "local",
             DetailFrame::Global => "global",
         },
-        info.planes,
+        if info.lossless {
+            format!("{}-bit grid", info.bits)
+        } else {
+            format!("{} bit planes", info.planes)
+        },
         match info.layout {
             Layout::Embedded => "embedded",
             Layout::Trees => "trees",

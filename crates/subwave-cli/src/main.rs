@@ -192,7 +192,8 @@ pub struct EncodeArgs {
     #[arg(long, value_enum, default_value = "embedded")]
     pub layout: encode::LayoutArg,
     /// Lossless mode: integer wavelet on the position grid; decoding the whole stream gives
-    /// the quantized positions bit for bit.
+    /// the quantized positions bit for bit. An irregular input's normal remesh is put on
+    /// that grid with its vertices on the coder's normal lines (one integer places each).
     #[arg(long)]
     pub lossless: bool,
     /// Code every SPIHT decision as a raw bit (no context modelling).

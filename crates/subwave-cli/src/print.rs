@@ -258,6 +258,20 @@ pub fn normal_stats(n: &subwave::remesh::normal::NormalStats) -> String {
     )
 }
 
+/// A snap to the lossless grid, as `"N of M odd vertices on their normal lines (P%), moved
+/// by A steps on average, at most B (step S)"`.
+pub fn snap_stats(s: &subwave::codec::normal_line::SnapStats) -> String {
+    let odd: usize = s.odd.iter().sum();
+    let on: usize = s.on_line.iter().sum();
+    format!(
+        "{on} of {odd} odd vertices on their normal lines ({:.1}%), moved by {:.2} grid steps on average, at most {:.2} (step {:.3e})",
+        100.0 * s.on_line_fraction(),
+        s.mean_move,
+        s.max_move,
+        s.grid_step
+    )
+}
+
 /// The repair of the faces a re-sampling folded, as `"; B folded or degenerate faces
 /// repaired, A left"`; empty if there were none.
 pub fn repaired(n: &subwave::remesh::normal::NormalStats) -> String {
@@ -275,12 +289,20 @@ pub fn fit_stats(f: &subwave::remesh::normal_fit::FitStats) -> String {
     )
 }
 
-/// The line `subwave encode` prints for the distance from the remesh to the input.
-pub fn remesh_distance(rms: f64, diagonal: f64) -> String {
+/// The line `subwave encode` prints for the distance from the remesh to the input (with
+/// `lossy`, and which bit planes that distance leaves uncoded).
+pub fn remesh_distance(rms: f64, diagonal: f64, lossy: bool) -> String {
+    let planes = if lossy {
+        format!(
+            "; bit planes below a quantization error of {:.0}% of it are not coded",
+            100.0 * subwave::codec::prepare::QUANTIZATION_SHARE
+        )
+    } else {
+        String::new()
+    };
     format!(
-        "remesh: {:.2} dB from the remesh to the input (one-sided RMS {rms:.4e}); bit planes below a quantization error of {:.0}% of it are not coded",
+        "remesh: {:.2} dB from the remesh to the input (one-sided RMS {rms:.4e}){planes}",
         subwave::distance::psnr(diagonal, rms),
-        100.0 * subwave::codec::prepare::QUANTIZATION_SHARE
     )
 }
 

@@ -85,6 +85,12 @@ pub struct RemeshArgs {
     /// (off the surface, closer to it in the L2 sense), as `subwave encode` does.
     #[arg(long, conflicts_with = "quads")]
     pub fit: bool,
+    /// Put the re-sampled remesh on the lossless grid of B bits (`2^B − 1` steps over the
+    /// longest side of its bounding box, the grid `subwave encode --lossless --bits B` finds
+    /// in the written mesh), each normal vertex on the lossless coder's normal line, so that
+    /// one integer places it (`codec::normal_line`; 1..=24). Needs --normal.
+    #[arg(long, value_name = "B", requires = "normal", value_parser = clap::value_parser!(u32).range(1..=24))]
+    pub grid_bits: Option<u32>,
     /// Where to write the base mesh (default: OUT with `.base` before the extension).
     #[arg(long, value_name = "PATH")]
     pub base_output: Option<PathBuf>,
@@ -93,7 +99,7 @@ pub struct RemeshArgs {
     pub samples: u64,
     /// Print JSON (keys method, base_faces, levels, vertices, faces, psnr, rms, max,
     /// max_relative, rms_relative, diagonal, min_angle, mean_angle, flipped, degenerate,
-    /// param_misses, time_ms, search_ms, tries, timings, normal, normal_ms, repair, missed,
+    /// param_misses, time_ms, search_ms, tries, timings, normal, normal_ms, snap, repair, missed,
     /// refolded, warnings, output, base_output). `time_ms` is the kept remesh's time,
     /// `search_ms` the wall time of all `tries` (without --base-faces, the remeshes over other
     /// base sizes that missed or folded, with their distances).
@@ -172,6 +178,7 @@ fn base_path(out: &Path) -> PathBuf {
 struct Attempt {
     r: Remeshed,
     resampled: Option<(subwave::remesh::normal::NormalStats, f64)>,
+    snapped: Option<subwave::codec::normal_line::SnapStats>,
     d: Option<subwave::distance::Distance>,
 }
 
@@ -224,12 +231,33 @@ pub fn run(args: &RemeshArgs) -> Result<()> {
             } else {
                 None
             };
+            let snapped = match args.grid_bits {
+                Some(bits) => Some(
+                    subwave::codec::normal_line::snap_remesh(
+                        &mut r,
+                        &mesh,
+                        &subwave::codec::normal_line::SnapOptions {
+                            bits,
+                            ..Default::default()
+                        },
+                    )
+                    .with_context(|| {
+                        format!("snapping the remesh of {} to the grid", args.mesh.display())
+                    })?,
+                ),
+                None => None,
+            };
             let d = if args.samples > 0 {
                 Some(distance(&mesh, &r.mesh, args.samples as usize)?)
             } else {
                 None
             };
-            Ok::<_, anyhow::Error>(Attempt { r, resampled, d })
+            Ok::<_, anyhow::Error>(Attempt {
+                r,
+                resampled,
+                snapped,
+                d,
+            })
         },
     )?;
     // Every try's remesh, re-sampling and distance, not only the kept one's.
@@ -238,7 +266,12 @@ pub fn run(args: &RemeshArgs) -> Result<()> {
     let (missed, refolded) = (searched.missed, searched.refolded);
     let tries = 1 + missed.len() + refolded.len();
     let misses = searched.kept.misses();
-    let Attempt { r, resampled, d } = searched.kept;
+    let Attempt {
+        r,
+        resampled,
+        snapped,
+        d,
+    } = searched.kept;
     // Printed once, by the log (stderr, shown at its default level); JSON also lists them.
     let mut warnings = r.warnings.clone();
     if !missed.is_empty() {
@@ -318,6 +351,7 @@ pub fn run(args: &RemeshArgs) -> Result<()> {
             "timings": r.timings,
             "normal": resampled.as_ref().map(|x| &x.0),
             "normal_ms": resampled.as_ref().map(|x| x.1),
+            "snap": snapped,
             "repair": r.repair,
             "missed": missed,
             "refolded": refolded,
@@ -409,6 +443,9 @@ pub fn run(args: &RemeshArgs) -> Result<()> {
                     stats.unfolded
                 ),
             );
+        }
+        if let Some(s) = &snapped {
+            t.row("grid", print::snap_stats(s));
         }
         if let Some(o) = &args.output {
             t.row("wrote", print::path(o));

@@ -414,3 +414,80 @@ fn default_levels_are_raised_for_lossy_streams_only() {
         "{lossless}"
     );
 }
+
+/// `remesh --normal --grid-bits B` writes a normal remesh on the lossless grid with most odd
+/// vertices on their normal lines; `encode --lossless --bits B` of that mesh finds the same
+/// grid and decodes to the written positions; `encode --lossless` of the irregular input
+/// snaps its own remesh. Bad combinations are refused with a message.
+#[test]
+fn snapped_remeshes_code_losslessly_on_their_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("t.obj");
+    let mut torus = generate::torus(1.0, 0.4, 40, 20, true);
+    for p in &mut torus.positions {
+        p.z *= 1.0 + 0.2 * (3.0 * p.x).sin();
+    }
+    write_mesh(&torus, &mesh, None).unwrap();
+    let (m, remesh) = (mesh.to_str().unwrap(), dir.path().join("r.obj"));
+    let r = remesh.to_str().unwrap();
+    let args = [
+        "remesh",
+        m,
+        "-o",
+        r,
+        "--levels",
+        "3",
+        "--normal",
+        "--grid-bits",
+        "12",
+        "--json",
+    ];
+    let v: Value = serde_json::from_str(&ok(&args)).unwrap();
+    let snap = &v["snap"];
+    let on: u64 = snap["on_line"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_u64().unwrap())
+        .sum();
+    let odd: u64 = snap["odd"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_u64().unwrap())
+        .sum();
+    assert!(on * 2 > odd, "{snap}");
+    assert!(snap["max_move"].as_f64().unwrap() <= 3.5, "{snap}");
+    let swv = dir.path().join("r.swv");
+    let s = swv.to_str().unwrap();
+    let out = ok(&["encode", r, "-o", s, "--lossless", "--bits", "12"]);
+    assert!(out.contains("12-bit grid"), "{out}");
+    let back = dir.path().join("back.obj");
+    ok(&["decode", s, "-o", back.to_str().unwrap()]);
+    let (a, b) = (
+        read_mesh(&remesh, None).unwrap(),
+        read_mesh(&back, None).unwrap(),
+    );
+    let mut pa: Vec<[i64; 3]> = a
+        .positions
+        .iter()
+        .map(|p| p.to_array().map(|c| (c * 1e9).round() as i64))
+        .collect();
+    let mut pb: Vec<[i64; 3]> = b
+        .positions
+        .iter()
+        .map(|p| p.to_array().map(|c| (c * 1e9).round() as i64))
+        .collect();
+    pa.sort_unstable();
+    pb.sort_unstable();
+    assert_eq!(pa, pb, "the decoded mesh is the written remesh");
+    let own = ok(&["encode", m, "-o", s, "--lossless", "--levels", "3"]);
+    assert!(
+        own.contains("lossless grid: ") && own.contains("on their normal lines"),
+        "{own}"
+    );
+    let e = fails(&["encode", m, "-o", s, "--lossless", "--bits", "25"]);
+    assert!(e.contains("at most 24 bits"), "{e}");
+    let o = run(&["remesh", m, "-o", r, "--grid-bits", "12"]);
+    assert_eq!(o.status.code(), Some(2), "--grid-bits needs --normal");
+}

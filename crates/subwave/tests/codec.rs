@@ -989,3 +989,100 @@ fn tangent_shift_spends_the_first_bytes_on_normal_components() {
         assert!(e.contains("tangent shift"), "{e}");
     }
 }
+
+/// A normal remesh of a bumpy torus snapped to the lossless grid (`codec::normal_line`), and
+/// its lossless stream at that grid's bits.
+fn snapped_torus_stream() -> (Hierarchy, Vec<u8>) {
+    use subwave::codec::normal_line::SnapOptions;
+    use subwave::codec::prepare::{prepare, PrepareOptions};
+    let mut mesh = generate::torus(1.0, 0.4, 48, 24, true);
+    for p in &mut mesh.positions {
+        let a = p.y.atan2(p.x);
+        let r = DVec3::new(p.x, p.y, 0.0).normalize();
+        *p += (0.03 * (7.0 * a).sin()) * (*p - r).normalize();
+    }
+    let prepared = prepare(
+        &mesh,
+        &PrepareOptions {
+            levels: Some(3),
+            base_faces: Some(96),
+            force_remesh: true,
+            normal: Some(true),
+            raise_levels: false,
+            snap: Some(SnapOptions {
+                bits: 12,
+                ..Default::default()
+            }),
+            ..Default::default()
+        },
+        &mut |_, _| {},
+    )
+    .unwrap();
+    let snap = prepared.snap.as_ref().unwrap();
+    assert!(
+        snap.on_line[2] as f64 > 0.9 * snap.odd[2] as f64,
+        "{snap:?}"
+    );
+    let h = prepared.hierarchy;
+    let s = encode(
+        &h,
+        &EncodeOptions {
+            lossless: true,
+            bits: 12,
+            lifted: false,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    (h, s)
+}
+
+/// The line predictor (level mode 6) codes a snapped normal remesh exactly, prefixes decode
+/// (the levels up to the cut exactly), and corrupt
+/// chunks behind valid checksums decode to an error or finite positions, never a panic.
+#[test]
+fn lossless_line_levels_are_exact_and_safe() {
+    let (h, s) = snapped_torus_stream();
+    let info = inspect(&s).unwrap();
+    let modes: Vec<u8> = info.chunks[1..]
+        .iter()
+        .map(|c| s[c.offset as usize])
+        .collect();
+    assert!(modes[2..].iter().all(|&m| m == 6), "predictors {modes:?}");
+    let (_, hs) = encode_with_info(
+        &h,
+        &EncodeOptions {
+            lossless: true,
+            bits: 12,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let want = grid_points(&s, &hs);
+    assert_eq!(full(&s).mesh.positions, want);
+    let min = info.header_bytes + info.base_bytes;
+    for cut in (min..=s.len()).step_by((s.len() - min) / 300 + 1) {
+        let d = decode(
+            &s,
+            &DecodeOptions {
+                max_bytes: Some(cut),
+                trees: None,
+            },
+        )
+        .unwrap();
+        let n = hs.num_vertices(d.planes_complete as usize);
+        assert_eq!(d.mesh.positions[..n], want[..n], "cut {cut}");
+    }
+    let mut x = 3u64;
+    for _ in 0..400 {
+        x = x
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let i = 1 + (x >> 40) as usize % (info.chunks.len() - 1);
+        let m = corrupt_behind_crc(&s, i, (x >> 20) as usize, (x >> 8) as u8 | 1);
+        if let Ok(d) = decode(&m, &DecodeOptions::default()) {
+            assert!(d.mesh.positions.iter().all(|p| p.is_finite()));
+        }
+    }
+    mutate_and_decode(&s);
+}

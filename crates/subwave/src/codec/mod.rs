@@ -14,6 +14,8 @@
 //! - [`container`]: the `.swv` stream format (header, chunk index, checksums);
 //! - [`prepare`]: any input mesh to the hierarchy the codec takes (detection or remeshing);
 //! - [`progressive`]: the encode/decode API of progressive and lossless streams;
+//! - [`normal_line`]: the lossless coder's normal lines, and a normal remesh snapped onto
+//!   them (one integer per vertex);
 //! - [`lossless`]: the lossless mode's level-by-level context-modelled coding of integer
 //!   wavelet details.
 
@@ -22,6 +24,7 @@ pub mod container;
 pub mod eval;
 pub mod forest;
 pub mod lossless;
+pub mod normal_line;
 pub mod prepare;
 pub mod progressive;
 pub mod quantize;
