@@ -259,16 +259,20 @@ pub fn normal_stats(n: &subwave::remesh::normal::NormalStats) -> String {
 }
 
 /// A snap to the lossless grid, as `"N of M odd vertices on their normal lines (P%), moved
-/// by A steps on average, at most B (step S)"`.
+/// by A steps on average, at most B (step S)"` and the vertices only rounded, if any.
 pub fn snap_stats(s: &subwave::codec::normal_line::SnapStats) -> String {
     let odd: usize = s.odd.iter().sum();
     let on: usize = s.on_line.iter().sum();
     format!(
-        "{on} of {odd} odd vertices on their normal lines ({:.1}%), moved by {:.2} grid steps on average, at most {:.2} (step {:.3e})",
+        "{on} of {odd} odd vertices on their normal lines ({:.1}%), moved by {:.2} grid steps on average, at most {:.2} (step {:.3e}){}",
         100.0 * s.on_line_fraction(),
         s.mean_move,
         s.max_move,
-        s.grid_step
+        s.grid_step,
+        match s.reverted {
+            0 => String::new(),
+            n => format!("; {n} only rounded, where the move turned a face over"),
+        }
     )
 }
 
