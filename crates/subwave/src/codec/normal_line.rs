@@ -257,7 +257,6 @@ pub fn snap_to_lines(h: &mut Hierarchy, opts: &SnapOptions) -> Result<SnapStats>
                 }
             });
         stats.odd.push(n - vj);
-        stats.on_line.push(0);
     }
     stats.reverted = revert_turned_faces(h, &x, &rounded, &mut q);
     // Count the vertices on their lines as the encoder finds them: the reverted ones are off
@@ -265,11 +264,13 @@ pub fn snap_to_lines(h: &mut Hierarchy, opts: &SnapOptions) -> Result<SnapStats>
     for (j, table) in tables.iter().enumerate() {
         let (vj, n) = (h.num_vertices(j), h.num_vertices(j + 1));
         let l = lines(table, h.topology(j), h.topology(j + 1), &q[..vj]);
-        stats.on_line[j] = (vj..n)
-            .into_par_iter()
-            .with_min_len(4096)
-            .filter(|&v| step(l[v - vj].0, l[v - vj].1, q[v]).is_some())
-            .count();
+        stats.on_line.push(
+            (vj..n)
+                .into_par_iter()
+                .with_min_len(4096)
+                .filter(|&v| step(l[v - vj].0, l[v - vj].1, q[v]).is_some())
+                .count(),
+        );
     }
     let moved: Vec<f64> = q
         .iter()
@@ -310,11 +311,11 @@ fn revert_turned_faces(
             .with_min_len(4096)
             .flat_map_iter(|f| {
                 let fv = topo.face_vertices(f);
-                let before = normal(fv, &|v| x[v]);
-                let turned = |n: DVec3| n.dot(before) <= 0.0;
-                let bad = fv.len() == 3
-                    && turned(normal(fv, &|v| g(qs[v])))
-                    && !turned(normal(fv, &|v| g(rounded[v])));
+                let bad = fv.len() == 3 && {
+                    let before = normal(fv, &|v| x[v]);
+                    let turned = |n: DVec3| n.dot(before) <= 0.0;
+                    turned(normal(fv, &|v| g(qs[v]))) && !turned(normal(fv, &|v| g(rounded[v])))
+                };
                 let fv = if bad { fv } else { &[] };
                 fv.iter()
                     .copied()
