@@ -195,7 +195,9 @@ pub struct PrepareOptions {
     /// halves the bytes at equal PSNR (stanford-bunny, rocker-arm), while on a CAD part with
     /// creases the MAPS remesh with crease-tagged base edges and the lifted butterfly is
     /// better (fandisk) — or when [`PrepareOptions::snap`] asks for a lossless grid (fandisk,
-    /// lossless at 12 bits: 22.5 KB as a MAPS remesh, 13.8 KB as a snapped normal mesh).
+    /// lossless at 12 bits: 22.5 KB as a MAPS remesh, 9.8 KB as a snapped normal mesh whose
+    /// vertices next to the creases are re-sampled along the decoder's crease-free lines,
+    /// [`NormalOptions::keep_near_creases`] and [`NormalOptions::untagged_prediction`]).
     /// Ignored for quads and for a detected hierarchy.
     pub normal: Option<bool>,
     /// After the normal re-sampling, move its vertices off the input along their piercing
@@ -403,7 +405,12 @@ pub fn prepare(
     loop {
         let (mut normal, mut fit, mut snap) = (None, None, None);
         if let Some(surface) = &surface {
-            let no = NormalOptions::default();
+            // A lossless grid's lines are the decoder's, which has no crease rules.
+            let no = NormalOptions {
+                untagged_prediction: opts.snap.is_some(),
+                keep_near_creases: opts.snap.is_none(),
+                ..NormalOptions::default()
+            };
             let stage = if run_normal { "normal" } else { "fit" };
             progress(stage, 0.0);
             // For a lossless grid over few levels, the levels below the default first
