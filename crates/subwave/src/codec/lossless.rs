@@ -1226,39 +1226,29 @@ pub(crate) fn decode(
                     }
                 }
             }
-            if mode == MODE_LINE {
-                let lines = pred
-                    .lines(&hier, j, &data[..vj])
-                    .ok_or_else(|| derr(off, "the butterfly tables are missing"))?;
-                if let Some((dec, whole, at, len)) = dec_opt.as_mut() {
-                    let s = Span {
-                        topo: hier.topology(j + 1),
-                        first_coded,
-                        first: vj,
-                    };
-                    got = decode_line_level(s, &lines, &mut res, &mut kinds, &mut data, dec);
-                    used = *at + *len;
-                    if got == n - vj && *whole {
-                        levels_complete += 1;
-                    } else {
-                        decoding = false;
-                    }
-                }
-                for v in vj + got..n {
-                    data[v] = normal_line::point(lines[v - vj].0, lines[v - vj].1, 0);
-                }
-                check_coords(&data[vj..n], &format!("level {j}"))?;
-                continue;
-            }
-            let p = pred.predict(mode, j, &data[..vj]);
+            let lines = if mode == MODE_LINE {
+                let l = pred.lines(&hier, j, &data[..vj]);
+                Some(l.ok_or_else(|| derr(off, "the butterfly tables are missing"))?)
+            } else {
+                None
+            };
+            let p = match lines {
+                Some(_) => Vec::new(),
+                None => pred.predict(mode, j, &data[..vj]),
+            };
             if let Some((dec, whole, at, len)) = dec_opt.as_mut() {
-                let ph: Vec<[u8; 3]> = p.iter().map(|x| x.1).collect();
                 let s = Span {
                     topo: hier.topology(j + 1),
                     first_coded,
                     first: vj,
                 };
-                got = decode_level(s, &ph, &mut res, dec);
+                got = match &lines {
+                    Some(l) => decode_line_level(s, l, &mut res, &mut kinds, &mut data, dec),
+                    None => {
+                        let ph: Vec<[u8; 3]> = p.iter().map(|x| x.1).collect();
+                        decode_level(s, &ph, &mut res, dec)
+                    }
+                };
                 used = *at + *len;
                 if got == n - vj && *whole {
                     levels_complete += 1;
@@ -1266,9 +1256,19 @@ pub(crate) fn decode(
                     decoding = false;
                 }
             }
-            for v in vj..n {
-                let r = if v - vj < got { res[v] } else { [0; 3] };
-                data[v] = [0, 1, 2].map(|c| p[v - vj].0[c].saturating_add(r[c]));
+            match &lines {
+                // Line levels wrote their decoded points; the rest get the prediction.
+                Some(l) => {
+                    for v in vj + got..n {
+                        data[v] = normal_line::point(l[v - vj].0, l[v - vj].1, 0);
+                    }
+                }
+                None => {
+                    for v in vj..n {
+                        let r = if v - vj < got { res[v] } else { [0; 3] };
+                        data[v] = [0, 1, 2].map(|c| p[v - vj].0[c].saturating_add(r[c]));
+                    }
+                }
             }
             check_coords(&data[vj..n], &format!("level {j}"))?;
         }

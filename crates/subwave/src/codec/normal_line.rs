@@ -195,11 +195,7 @@ pub fn snap_to_lines(h: &mut Hierarchy, opts: &SnapOptions) -> Result<SnapStats>
             "vertex {v} has a non-finite coordinate"
         )));
     }
-    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    for p in &h.positions {
-        lo = lo.min(*p);
-        hi = hi.max(*p);
-    }
+    let [lo, hi] = super::progressive::bbox(&h.positions);
     let grid = Grid::new(lo, hi, opts.bits);
     let top = ((hi - lo) / grid.step).round();
     let top = [top.x as i64, top.y as i64, top.z as i64];
@@ -236,32 +232,35 @@ pub fn snap_to_lines(h: &mut Hierarchy, opts: &SnapOptions) -> Result<SnapStats>
     for (j, table) in tables.iter().enumerate() {
         let (vj, n) = (h.num_vertices(j), h.num_vertices(j + 1));
         let l = lines(table, h.topology(j), h.topology(j + 1), &q[..vj]);
-        q[vj..n]
+        let on_line = q[vj..n]
             .par_iter_mut()
             .with_min_len(1024)
             .zip(&x[vj..n])
             .zip(&l)
             .enumerate()
-            .for_each(|(i, ((qv, &xv), &(p, nrm)))| {
-                if anchors.contains(&(vj + i)) {
-                    return;
-                }
+            .map(|(i, ((qv, &xv), &(p, nrm)))| {
                 let t = (xv - p).dot(nrm);
                 let off = (xv - p - t * nrm).length();
-                if off.is_nan() || off > reach {
-                    return;
+                if !anchors.contains(&(vj + i)) && off <= reach {
+                    let c = point(p, nrm, floor_i64(t + 0.5));
+                    if (0..3).all(|i| (0..=top[i]).contains(&c[i])) {
+                        *qv = c;
+                        return 1;
+                    }
                 }
-                let c = point(p, nrm, floor_i64(t + 0.5));
-                if (0..3).all(|i| (0..=top[i]).contains(&c[i])) {
-                    *qv = c;
-                }
-            });
+                // A rounded point can be on its line too (the coder finds it there).
+                usize::from(step(p, nrm, *qv).is_some())
+            })
+            .sum::<usize>();
         stats.odd.push(n - vj);
+        stats.on_line.push(on_line);
     }
     stats.reverted = revert_turned_faces(h, &x, &rounded, &mut q);
-    // Count the vertices on their lines as the encoder finds them: the reverted ones are off
-    // them (unless their rounded point is on them), and a rounded one can be on its line.
-    for (j, table) in tables.iter().enumerate() {
+    // A revert moves a vertex off its line and the lines of its descendants: count again.
+    stats
+        .on_line
+        .truncate(if stats.reverted > 0 { 0 } else { tables.len() });
+    for (j, table) in tables.iter().enumerate().skip(stats.on_line.len()) {
         let (vj, n) = (h.num_vertices(j), h.num_vertices(j + 1));
         let l = lines(table, h.topology(j), h.topology(j + 1), &q[..vj]);
         stats.on_line.push(

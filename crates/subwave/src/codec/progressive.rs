@@ -472,7 +472,8 @@ impl<'h> IntTransform<'h> {
     }
 }
 
-fn bbox(p: &[DVec3]) -> [DVec3; 2] {
+/// The bounding box `[min, max]` of `p` (zero for no points).
+pub(crate) fn bbox(p: &[DVec3]) -> [DVec3; 2] {
     let mut lo = DVec3::splat(f64::INFINITY);
     let mut hi = DVec3::splat(f64::NEG_INFINITY);
     for x in p {
