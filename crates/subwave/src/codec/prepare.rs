@@ -16,7 +16,9 @@ use super::normal_line::{snap_to_lines, SnapOptions, SnapStats};
 pub use crate::remesh::default_base::{
     finer_base, Missed, DEFAULT_BASE_FACES, MAX_DEFAULT_BASE_FACES,
 };
-use crate::remesh::normal::{resample_hierarchy, NormalOptions, NormalStats, NormalSurface};
+use crate::remesh::normal::{
+    count_folded, resample_hierarchy, unfold_to, NormalOptions, NormalStats, NormalSurface,
+};
 use crate::remesh::normal_fit::FitStats;
 use crate::remesh::{remesh_with_progress, RemeshOptions, Remeshed};
 use crate::subdivision::sharp_edges_by_angle;
@@ -41,12 +43,16 @@ pub const QUANTIZATION_SHARE: f64 = 0.25;
 
 /// A remesh of at most this many levels put on a lossless grid ([`PrepareOptions::snap`]) is
 /// normal re-sampled from its second level on (not its third,
-/// [`NormalOptions::from_level`]) where that leaves no more folded faces: its first two
-/// levels, which would keep their MAPS positions and cost a residual vector per vertex, are a
-/// quarter of its vertices at 3 levels. Measured, lossless at 12 bits (bytes, from the third
-/// level → from the second): spot 6,794 → 5,898, teapot 6,699 → 5,236, suzanne (2 levels)
-/// 4,601 → 3,663; at 4 and 5 levels it does not pay (rocker-arm −10% but 6 folded faces left
-/// instead of none, cheburashka +1.8%, fandisk +1.5%, stanford-bunny +1.1%).
+/// [`NormalOptions::from_level`]) where that leaves no more folded faces than the later
+/// re-sampling, once the later one's positions are put back around the faces only the
+/// earlier one folds ([`unfold_to`]; both counted alike, as `remesh` reports flipped and
+/// degenerate faces): its first two levels, which would keep their MAPS positions and cost
+/// a residual vector per vertex, are a quarter of its vertices at 3 levels. Measured,
+/// lossless at 12 bits (bytes, from the third level → from the second): spot 6,794 → 5,898,
+/// teapot 6,699 → 5,236, suzanne (2 levels) 4,601 → 3,663, cow 20,280 → 15,697 (0.570× →
+/// 0.436× Draco's bytes; 17 folded faces left instead of 22); at 4 levels it does not pay
+/// everywhere (rocker-arm 12,509 → 11,327, cheburashka 12,989 → 13,362; measured
+/// 2026-12-05), nor at 5 (stanford-bunny +1.1%).
 pub const SNAP_EARLY_MAX_LEVELS: usize = 3;
 
 /// Dihedral angle (degrees) of the feature edges [`detect_feature_angle`] looks for.
@@ -430,9 +436,18 @@ pub fn prepare(
                 .transpose()?;
             let mut stats =
                 resample_hierarchy(&mut r.hierarchy, surface, run_normal, opts.fit, &no, false)?;
-            if let Some((h, s)) = early.filter(|(_, s)| s.repaired[1] <= stats.repaired[1]) {
-                r.hierarchy = h;
-                stats = s;
+            if let Some((mut h, mut s)) = early {
+                if s.repaired[1] > stats.repaired[1] {
+                    // Around the folds the later piercing does not have, its positions.
+                    let finest = &h.topologies[h.levels()];
+                    let proj = surface.projector();
+                    s.unfolded = unfold_to(&mut h.positions, &r.hierarchy.positions, finest, proj);
+                    s.repaired[1] = count_folded(finest, &h.positions, proj);
+                }
+                if s.repaired[1] <= stats.repaired[1] {
+                    r.hierarchy = h;
+                    stats = s;
+                }
             }
             fit = stats.fit;
             if run_normal {
@@ -614,6 +629,37 @@ mod tests {
             assert!(p.encode_options().lifted);
         }
         assert!(run(Some(40.0), Some(true)).normal.is_some());
+    }
+
+    /// For a lossless grid, a remesh of at most [`SNAP_EARLY_MAX_LEVELS`] levels is pierced
+    /// from its second level on when that leaves no more folded faces (as the repair counts
+    /// them, the same count as the later piercing's); deeper remeshes from their third.
+    #[test]
+    fn a_shallow_snapped_remesh_is_pierced_one_level_earlier() {
+        let m = generate::torus(1.0, 0.4, 49, 25, true);
+        let run = |levels| {
+            let opts = PrepareOptions {
+                levels: Some(levels),
+                base_faces: Some(64),
+                snap: Some(SnapOptions::default()),
+                ..Default::default()
+            };
+            prepare(&m, &opts, &mut |_, _| {}).unwrap()
+        };
+        let shallow = run(2);
+        let n = shallow
+            .normal
+            .as_ref()
+            .expect("a snap runs the normal re-sampling");
+        assert_eq!(n.normal[0], 0, "{n:?}");
+        assert!(n.normal[1] > n.odd[1] / 2, "{n:?}");
+        assert_eq!(n.repaired[1], 0, "{n:?}");
+        let r = shallow.remeshed.as_ref().unwrap();
+        assert_eq!(r.mesh.positions, shallow.hierarchy.positions);
+        let deep = run(4);
+        let n = deep.normal.as_ref().unwrap();
+        assert_eq!(n.normal[..2], [0, 0], "{n:?}");
+        assert!(n.normal[2] > 0, "{n:?}");
     }
 
     #[test]

@@ -345,7 +345,8 @@ const HINT_RINGS: usize = 16;
 /// of their stars, discs re-embedded, stars searched; each move kept only if it lowers the
 /// bad faces around it). Base vertices and the vertices on boundary and feature edges stay
 /// where they are. The vertices moved lose their normal (scalar) details and their
-/// least-squares offsets, the others keep theirs. Returns the bad faces before and after.
+/// least-squares offsets, the others keep theirs. Returns the bad faces before and after
+/// ([`count_folded`]).
 fn repair_in_place(h: &mut Hierarchy, proj: &Projector) -> (usize, usize) {
     let t0 = std::time::Instant::now();
     let levels = h.levels();
@@ -409,11 +410,13 @@ fn repair_in_place(h: &mut Hierarchy, proj: &Projector) -> (usize, usize) {
         ?fr,
         "re-sampling: fold repair"
     );
-    (bad.len(), fr.flipped_after + fr.degenerate_after)
+    // Counted as before the repair (and as `quality::measure` counts them): the repair's own
+    // counts use its vertices' nearest input triangles, and only in its regions.
+    (bad.len(), count_folded(topo, &h.positions, proj))
 }
 
 /// Rounds of [`unfold_to`] at most.
-const UNFOLD_ROUNDS: usize = 40;
+const UNFOLD_ROUNDS: usize = 400;
 
 /// Whether the face `fv` of a re-sampled remesh is folded or degenerate, as
 /// [`super::quality::measure`] counts them: its normal opposes the input's at the closest
@@ -422,6 +425,14 @@ const UNFOLD_ROUNDS: usize = 40;
 fn folded(fv: &[u32], pos: &[DVec3], proj: &Projector) -> bool {
     let (_, flipped, degenerate) = super::quality::face_quality(fv, pos, proj, &[]);
     flipped || degenerate
+}
+
+/// The faces of `topo` that are [`folded`] or degenerate at `pos`.
+pub(crate) fn count_folded(topo: &Topology, pos: &[DVec3], proj: &Projector) -> usize {
+    (0..topo.num_faces())
+        .into_par_iter()
+        .filter(|&f| folded(topo.face_vertices(f), pos, proj))
+        .count()
 }
 
 /// Whether face `fv` is [`folded`] at `pos` but not at `before`.
