@@ -45,7 +45,7 @@ pub const QUANTIZATION_SHARE: f64 = 0.25;
 /// normal re-sampled from its second level on (not its third,
 /// [`NormalOptions::from_level`]) where that leaves no more folded faces than the later
 /// re-sampling, once the later one's positions are put back around the faces only the
-/// earlier one folds ([`unfold_to`]; both counted alike, as `remesh` reports flipped and
+/// earlier one folds (both counted alike, as `remesh` reports flipped and
 /// degenerate faces): its first two levels, which would keep their MAPS positions and cost
 /// a residual vector per vertex, are a quarter of its vertices at 3 levels. Measured,
 /// lossless at 12 bits (bytes, from the third level → from the second): spot 6,794 → 5,898,

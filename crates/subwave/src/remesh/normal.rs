@@ -112,10 +112,12 @@ pub struct NormalStats {
     /// they were applied.
     pub fit: Option<super::normal_fit::FitStats>,
     /// Vertices put back where the remesh had them because their faces were still folded
-    /// after the repair in place ([`resample_remesh`]; 0 elsewhere).
+    /// after the repair in place ([`resample_remesh`]; in the codec's preparation, where an
+    /// earlier re-sampling for a lossless grid got the later one's positions back; else 0).
     pub unfolded: usize,
     /// Faces of the finest level the re-sampling folded or made degenerate, before and
-    /// after their repair in place ([`resample_remesh`] and the codec's preparation).
+    /// after their repair in place ([`resample_remesh`] and the codec's preparation; both
+    /// counted as [`super::quality::measure`] counts flipped and degenerate faces).
     pub repaired: [usize; 2],
 }
 
