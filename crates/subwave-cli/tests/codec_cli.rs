@@ -457,7 +457,8 @@ fn snapped_remeshes_code_losslessly_on_their_grid() {
         .map(|x| x.as_u64().unwrap())
         .sum();
     assert!(on * 2 > odd, "{snap}");
-    assert!(snap["max_move"].as_f64().unwrap() <= 3.5, "{snap}");
+    // Within the default reach (4 grid steps) of the line, plus the rounding.
+    assert!(snap["max_move"].as_f64().unwrap() <= 5.5, "{snap}");
     let swv = dir.path().join("r.swv");
     let s = swv.to_str().unwrap();
     let out = ok(&["encode", r, "-o", s, "--lossless", "--bits", "12"]);

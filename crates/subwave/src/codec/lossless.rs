@@ -39,8 +39,8 @@
 //! `subwave encode --lossless` makes of an irregular input) has most of its vertices on their
 //! lines, so one integer places each: measured at 12 bits against Draco on the same remesh
 //! (`scripts/lossless_vs_draco.py`), stanford-bunny at 5 levels 0.675× (mode 6 on the
-//! unsnapped normal remesh) → 0.401× (snapped), rocker-arm and cheburashka at 4 levels
-//! 0.42×.
+//! unsnapped normal remesh) → 0.395× (snapped), rocker-arm and cheburashka at 4 levels
+//! 0.42× and 0.41×.
 //!
 //! A **reference stream** (flag `F_REFERENCE` of [`super::progressive`]) targets meshes that
 //! are (close to) subdivision surfaces. Interpolating predictors predict a Loop surface

@@ -118,8 +118,14 @@ pub struct SnapOptions {
     /// lossless coder's grid at the same bits; 1..=24).
     pub bits: u32,
     /// An odd vertex goes onto its line if it is at most this many grid steps from it
-    /// (default 2: a normal re-sampling's vertex lies on the line through the unquantized
-    /// coarser level, which the grid moves by up to a cell).
+    /// (default 4). A normal re-sampling's vertex lies on the line through the unquantized
+    /// coarser level, which the grid moves by up to a cell, and its normal turns with it: the
+    /// farther the vertex is along its line, the farther it is from the decoder's. Measured
+    /// at 12 bits (bytes, reach 2 → 4 → 8; PSNR of the decoded remesh against the input):
+    /// stanford-bunny 35,559 → 35,147 → 35,066 (83.19 → 83.16 → 83.05 dB), spot 5,898 →
+    /// 5,689 → 5,496 (71.23 → 71.19 → 71.15 dB), teapot 5,236 → 5,028 → 4,919, cow 15,697 →
+    /// 15,342 → 15,100, suzanne 3,663 → 3,575 → 3,464 (the last three within 0.02 dB up to
+    /// 4; the cow 0.16 dB farther at 8); rocker-arm 12,509 → 12,419 at 4 (78.39 → 78.37 dB).
     pub reach: f64,
 }
 
@@ -127,7 +133,7 @@ impl Default for SnapOptions {
     fn default() -> Self {
         SnapOptions {
             bits: 12,
-            reach: 2.0,
+            reach: 4.0,
         }
     }
 }
@@ -422,10 +428,11 @@ mod tests {
         let before = h.positions.clone();
         let s = snap_to_lines(&mut h, &SnapOptions::default()).unwrap();
         assert!(s.on_line_fraction() > 0.9, "{s:?}");
-        assert!(s.max_move <= 2.0 + 1.5, "{s:?}");
+        let bound = SnapOptions::default().reach + 1.5;
+        assert!(s.max_move <= bound, "{s:?}");
         let step_len = s.grid_step;
         for (a, b) in before.iter().zip(&h.positions) {
-            assert!(a.distance(*b) <= 3.5 * step_len);
+            assert!(a.distance(*b) <= bound * step_len);
         }
         // Recompute the lines from the snapped grid points, as a decoder would.
         let grid = {

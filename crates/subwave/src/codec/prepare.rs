@@ -47,8 +47,8 @@ pub const QUANTIZATION_SHARE: f64 = 0.25;
 /// re-sampling, once the later one's positions are put back around the faces only the
 /// earlier one folds (both counted alike, as `remesh` reports flipped and
 /// degenerate faces): its first two levels, which would keep their MAPS positions and cost
-/// a residual vector per vertex, are a quarter of its vertices at 3 levels. Measured,
-/// lossless at 12 bits (bytes, from the third level → from the second): spot 6,794 → 5,898,
+/// a residual vector per vertex, are a quarter of its vertices at 3 levels. Measured (snap
+/// reach 2), lossless at 12 bits (bytes, from the third level → from the second): spot 6,794 → 5,898,
 /// teapot 6,699 → 5,236, suzanne (2 levels) 4,601 → 3,663, cow 20,280 → 15,697 (0.570× →
 /// 0.436× Draco's bytes; 17 folded faces left instead of 22); at 4 levels it does not pay
 /// everywhere (rocker-arm 12,509 → 11,327, cheburashka 12,989 → 13,362; measured
@@ -224,7 +224,8 @@ pub struct PrepareOptions {
     /// the lossless coder's normal lines ([`crate::codec::normal_line::snap_to_lines`]), for
     /// a lossless stream at the same bits (default `None`: the remesh is not snapped).
     /// Measured (stanford-bunny, 12 bits, `scripts/lossless_vs_draco.py` on the written
-    /// remesh): 5 levels 0.675× → 0.401× Draco's bytes, 4 levels 0.459×. Ignored unless the
+    /// remesh): 5 levels 0.675× → 0.401× Draco's bytes (0.395× since the snap's reach is 4
+    /// grid steps, [`SnapOptions::reach`]), 4 levels 0.459×. Ignored unless the
     /// normal re-sampling runs ([`PrepareOptions::normal`], which it makes the default).
     pub snap: Option<SnapOptions>,
 }
