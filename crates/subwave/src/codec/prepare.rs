@@ -45,10 +45,10 @@ pub const QUANTIZATION_SHARE: f64 = 0.25;
 /// normal re-sampled from its second level on (not its third,
 /// [`NormalOptions::from_level`]) where that leaves no more folded faces than the later
 /// re-sampling, once the later one's positions are put back around the faces only the
-/// earlier one folds (both counted alike, as `remesh` reports flipped and
-/// degenerate faces): its first two levels, which would keep their MAPS positions and cost
-/// a residual vector per vertex, are a quarter of its vertices at 3 levels. Measured (snap
-/// reach 2), lossless at 12 bits (bytes, from the third level → from the second): spot 6,794 → 5,898,
+/// earlier one folds (both counted alike, as `remesh` reports flipped and degenerate
+/// faces): its first two levels, which would keep their MAPS positions and cost a residual
+/// vector per vertex, are a quarter of its vertices at 3 levels. Measured (snap reach 2),
+/// lossless at 12 bits (bytes, from the third level → from the second): spot 6,794 → 5,898,
 /// teapot 6,699 → 5,236, suzanne (2 levels) 4,601 → 3,663, cow 20,280 → 15,697 (0.570× →
 /// 0.436× Draco's bytes; 17 folded faces left instead of 22); at 4 levels it does not pay
 /// everywhere (rocker-arm 12,509 → 11,327, cheburashka 12,989 → 13,362; measured
@@ -633,8 +633,8 @@ mod tests {
     }
 
     /// For a lossless grid, a remesh of at most [`SNAP_EARLY_MAX_LEVELS`] levels is pierced
-    /// from its second level on when that leaves no more folded faces (as the repair counts
-    /// them, the same count as the later piercing's); deeper remeshes from their third.
+    /// from its second level on when that leaves no more folded faces than the later
+    /// piercing (none on a torus); deeper remeshes from their third.
     #[test]
     fn a_shallow_snapped_remesh_is_pierced_one_level_earlier() {
         let m = generate::torus(1.0, 0.4, 49, 25, true);

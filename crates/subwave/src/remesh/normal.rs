@@ -418,7 +418,7 @@ fn repair_in_place(h: &mut Hierarchy, proj: &Projector) -> (usize, usize) {
 }
 
 /// Rounds of [`unfold_to`] at most.
-const UNFOLD_ROUNDS: usize = 400;
+const UNFOLD_ROUNDS: usize = 40;
 
 /// Whether the face `fv` of a re-sampled remesh is folded or degenerate, as
 /// [`super::quality::measure`] counts them: its normal opposes the input's at the closest
@@ -429,7 +429,7 @@ fn folded(fv: &[u32], pos: &[DVec3], proj: &Projector) -> bool {
     flipped || degenerate
 }
 
-/// The faces of `topo` that are [`folded`] or degenerate at `pos`.
+/// How many faces of `topo` are [`folded`] (flipped or degenerate) at `pos`.
 pub(crate) fn count_folded(topo: &Topology, pos: &[DVec3], proj: &Projector) -> usize {
     (0..topo.num_faces())
         .into_par_iter()
