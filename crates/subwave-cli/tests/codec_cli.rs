@@ -444,18 +444,11 @@ fn snapped_remeshes_code_losslessly_on_their_grid() {
     ];
     let v: Value = serde_json::from_str(&ok(&args)).unwrap();
     let snap = &v["snap"];
-    let on: u64 = snap["on_line"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_u64().unwrap())
-        .sum();
-    let odd: u64 = snap["odd"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_u64().unwrap())
-        .sum();
+    let sum = |key: &str| -> u64 {
+        let counts = snap[key].as_array().unwrap();
+        counts.iter().map(|x| x.as_u64().unwrap()).sum()
+    };
+    let (on, odd) = (sum("on_line"), sum("odd"));
     assert!(on * 2 > odd, "{snap}");
     // Within the default reach (4 grid steps) of the line, plus the rounding.
     assert!(snap["max_move"].as_f64().unwrap() <= 5.5, "{snap}");

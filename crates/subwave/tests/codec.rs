@@ -46,6 +46,17 @@ fn full(bytes: &[u8]) -> subwave::codec::progressive::Decoded {
     decode(bytes, &DecodeOptions::default()).unwrap()
 }
 
+/// The decode of the first `cut` bytes of a stream (every tree).
+fn prefix(bytes: &[u8], cut: usize) -> subwave::Result<subwave::codec::progressive::Decoded> {
+    decode(
+        bytes,
+        &DecodeOptions {
+            max_bytes: Some(cut),
+            trees: None,
+        },
+    )
+}
+
 #[test]
 fn every_wavelet_round_trips_to_the_quantization_error() {
     let h = bumpy(3);
@@ -89,13 +100,7 @@ fn prefixes_improve_and_all_prefixes_of_a_small_stream_decode() {
     let min = info.header_bytes + info.base_bytes;
     let mut errors = Vec::new();
     for cut in 0..=s.len() {
-        let r = decode(
-            &s,
-            &DecodeOptions {
-                max_bytes: Some(cut),
-                trees: None,
-            },
-        );
+        let r = prefix(&s, cut);
         if cut < min {
             assert!(matches!(r, Err(Error::Decode { .. })), "cut {cut}");
         } else {
@@ -174,14 +179,7 @@ fn random_prefixes_of_a_large_stream_decode() {
             .wrapping_add(1442695040888963407);
         let cut = min + (x >> 33) as usize % (s.len() - min + 1);
         // Only decode the coefficients (fast path check of prefix safety); reconstruct a few.
-        let d = decode(
-            &s,
-            &DecodeOptions {
-                max_bytes: Some(cut),
-                trees: None,
-            },
-        )
-        .unwrap();
+        let d = prefix(&s, cut).unwrap();
         assert!(d.bytes_used <= cut);
     }
 }
@@ -277,14 +275,7 @@ fn lossless_mode_reproduces_the_quantized_positions() {
             assert_eq!(*a, want);
         }
         // A prefix is lossy but decodes.
-        let p = decode(
-            &s,
-            &DecodeOptions {
-                max_bytes: Some(s.len() * 2 / 3),
-                trees: None,
-            },
-        )
-        .unwrap();
+        let p = prefix(&s, s.len() * 2 / 3).unwrap();
         assert!(!p.complete);
     }
     let e = encode(
@@ -516,27 +507,13 @@ fn lossless_levels_decode_to_exact_coarse_meshes() {
     let mut errors = Vec::new();
     for (j, c) in info.chunks.iter().enumerate().skip(1) {
         let end = c.offset as usize + c.len as usize;
-        let d = decode(
-            &s,
-            &DecodeOptions {
-                max_bytes: Some(end),
-                trees: None,
-            },
-        )
-        .unwrap();
+        let d = prefix(&s, end).unwrap();
         assert_eq!(d.planes_complete as usize, j);
         let n = hs.num_vertices(j);
         assert_eq!(d.mesh.positions[..n], want[..n], "level {j}");
         errors.push(rms(&d.mesh.positions, &want));
         // A cut inside the chunk decodes (a part of the level).
-        let mid = decode(
-            &s,
-            &DecodeOptions {
-                max_bytes: Some(end - c.len as usize / 2),
-                trees: None,
-            },
-        )
-        .unwrap();
+        let mid = prefix(&s, end - c.len as usize / 2).unwrap();
         assert!(!mid.complete && mid.bytes_used <= end);
     }
     assert!(errors.windows(2).all(|w| w[1] <= w[0]), "{errors:?}");
@@ -544,13 +521,7 @@ fn lossless_levels_decode_to_exact_coarse_meshes() {
     // Prefixes shorter than the base chunk are errors, never panics.
     let min = info.header_bytes + info.base_bytes;
     for cut in (0..min).step_by(7) {
-        let r = decode(
-            &s,
-            &DecodeOptions {
-                max_bytes: Some(cut),
-                trees: None,
-            },
-        );
+        let r = prefix(&s, cut);
         assert!(matches!(r, Err(Error::Decode { .. })), "cut {cut}");
     }
 }
@@ -582,15 +553,7 @@ fn lossless_quad_streams_are_exact() {
 /// The surface (area-sampled) RMS distance from the decode of `s`'s first `cut` bytes to
 /// `target`.
 fn prefix_surface_rms(s: &[u8], cut: usize, target: &subwave::mesh::Mesh) -> f64 {
-    let m = decode(
-        s,
-        &DecodeOptions {
-            max_bytes: Some(cut),
-            ..Default::default()
-        },
-    )
-    .unwrap()
-    .mesh;
+    let m = prefix(s, cut).unwrap().mesh;
     subwave::distance::distance(&m, target, 20_000).unwrap().rms
 }
 
@@ -759,14 +722,7 @@ fn check_reference_stream(h: &Hierarchy, scheme_id: u8) {
     assert!(s.len() < hs.positions.len() / 2, "{} bytes", s.len());
     // Level prefixes are exact on their levels.
     for (j, c) in info.chunks.iter().enumerate().skip(1) {
-        let d = decode(
-            &s,
-            &DecodeOptions {
-                max_bytes: Some(c.offset as usize + c.len as usize),
-                trees: None,
-            },
-        )
-        .unwrap();
+        let d = prefix(&s, c.offset as usize + c.len as usize).unwrap();
         let n = hs.num_vertices(j);
         assert_eq!(d.mesh.positions[..n], want[..n], "level {j}");
     }
@@ -1062,14 +1018,7 @@ fn lossless_line_levels_are_exact_and_safe() {
     assert_eq!(full(&s).mesh.positions, want);
     let min = info.header_bytes + info.base_bytes;
     for cut in (min..=s.len()).step_by((s.len() - min) / 300 + 1) {
-        let d = decode(
-            &s,
-            &DecodeOptions {
-                max_bytes: Some(cut),
-                trees: None,
-            },
-        )
-        .unwrap();
+        let d = prefix(&s, cut).unwrap();
         let n = hs.num_vertices(d.planes_complete as usize);
         assert_eq!(d.mesh.positions[..n], want[..n], "cut {cut}");
     }

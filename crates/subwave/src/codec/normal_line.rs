@@ -160,11 +160,7 @@ pub struct SnapStats {
 impl SnapStats {
     /// The share of the odd vertices put on their line (1 if there are none).
     pub fn on_line_fraction(&self) -> f64 {
-        let odd: usize = self.odd.iter().sum();
-        if odd == 0 {
-            return 1.0;
-        }
-        self.on_line.iter().sum::<usize>() as f64 / odd as f64
+        crate::remesh::normal::share(&self.on_line, &self.odd)
     }
 }
 

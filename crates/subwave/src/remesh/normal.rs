@@ -124,12 +124,17 @@ pub struct NormalStats {
 impl NormalStats {
     /// The fraction of all odd vertices that are normal (1 if there are none).
     pub fn normal_fraction(&self) -> f64 {
-        let odd: usize = self.odd.iter().sum();
-        if odd == 0 {
-            return 1.0;
-        }
-        self.normal.iter().sum::<usize>() as f64 / odd as f64
+        share(&self.normal, &self.odd)
     }
+}
+
+/// `Σ part / Σ whole` of per-step counts (1 if `whole` sums to 0).
+pub(crate) fn share(part: &[usize], whole: &[usize]) -> f64 {
+    let whole: usize = whole.iter().sum();
+    if whole == 0 {
+        return 1.0;
+    }
+    part.iter().sum::<usize>() as f64 / whole as f64
 }
 
 /// Re-samples the triangle hierarchy `h` (a remesh of the surface `input_pos` /
