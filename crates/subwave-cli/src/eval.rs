@@ -9,12 +9,13 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use serde_json::json;
+use subwave::codec::direct;
 use subwave::codec::eval::{self, bpv_at_psnr, RdPoint};
 use subwave::codec::prepare::{prepare, Prepared};
 use subwave::codec::progressive::{decode, encode, inspect, DecodeOptions, EncodeOptions};
 use subwave::io::read_mesh;
 
-use crate::encode::WaveletArg;
+use crate::encode::{DirectArg, WaveletArg};
 use crate::svg::{self, Series};
 use crate::{print, progress, EvalArgs};
 
@@ -104,14 +105,17 @@ fn options(args: &EvalArgs, prep: &Prepared) -> EncodeOptions {
     o
 }
 
+/// The mesh's file name (the key of its lines in a peer's points).
+fn file_name(args: &EvalArgs) -> String {
+    args.mesh
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
 /// Runs `subwave eval`.
 pub fn run(args: &EvalArgs) -> Result<()> {
     let name = print::path(&args.mesh);
-    let file_name = args
-        .mesh
-        .file_name()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
     let mut mesh = read_mesh(&args.mesh, args.format)?;
     mesh.remove_unreferenced();
     let references = args
@@ -119,10 +123,22 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         .iter()
         .map(|p| {
             let text = std::fs::read_to_string(p).with_context(|| p.display().to_string())?;
-            parse_reference(&text, p, &file_name)
+            parse_reference(&text, p, &file_name(args))
         })
         .collect::<Result<Vec<_>>>()?;
     let t0 = Instant::now();
+    if args.prep.direct == DirectArg::Always {
+        let bits = args.bits.unwrap_or(direct::DEFAULT_BITS);
+        if bits < direct::COARSE_BITS {
+            bail!(
+                "--bits {bits}: a direct stream has at least {} bits",
+                direct::COARSE_BITS
+            );
+        }
+        let bytes = crate::encode::direct_stream(&mesh, bits, &name)?;
+        let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
+        return report(args, &mesh, &references, None, &bytes, encode_ms, None);
+    }
     let quads = matches!(args.wavelet, Some(WaveletArg::Linear | WaveletArg::Cubic));
     let prep = progress::with_bar("prepare", args.json, |cb| {
         prepare(&mesh, &args.prep.options(quads), cb)
@@ -136,17 +152,57 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     } else if let (Some(f), false) = (&prep.fit, args.json) {
         println!("MAPS remesh: {}", print::fit_stats(f));
     }
-    let h = &prep.hierarchy;
     let mut opts = options(args, &prep);
     opts.input_vertices = Some(mesh.num_vertices() as u32);
-    let bytes = encode(h, &opts).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let bytes = encode(&prep.hierarchy, &opts).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    // `--direct auto`: the direct stream where it serves the input better.
+    let weighed = if args.prep.direct == DirectArg::Auto && prep.remeshed.is_some() {
+        crate::encode::weigh_direct(&mesh, &bytes, &name)
+    } else {
+        None
+    };
     let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let info = inspect(&bytes)?;
+    let chosen = weighed.as_ref().is_some_and(|(_, c)| c.prefer_direct());
+    if let (Some((_, c)), false) = (&weighed, args.json) {
+        println!("{}", crate::encode::comparison_line(c, chosen));
+    }
+    match weighed {
+        Some((direct, c)) if chosen => {
+            report(args, &mesh, &references, None, &direct, encode_ms, Some(c))
+        }
+        w => report(
+            args,
+            &mesh,
+            &references,
+            Some((&prep, &opts)),
+            &bytes,
+            encode_ms,
+            w.map(|(_, c)| c),
+        ),
+    }
+}
+
+/// Measures the stream `bytes` of `mesh` at the budgets of `args` and prints the table (or
+/// JSON) and the plot: a wavelet stream with what `prep` made of the input and its options,
+/// or (`prep` `None`) a direct stream; `comparison`: how the direct stream compared with the
+/// remesh's, if it was weighed.
+fn report(
+    args: &EvalArgs,
+    mesh: &subwave::Mesh,
+    references: &[Reference],
+    prep: Option<(&Prepared, &EncodeOptions)>,
+    bytes: &[u8],
+    encode_ms: f64,
+    comparison: Option<direct::Comparison>,
+) -> Result<()> {
+    let name = print::path(&args.mesh);
+    let file_name = file_name(args);
+    let info = inspect(bytes)?;
     let first = info.header_bytes + info.base_bytes;
     let budgets = eval::budgets(first.max(1), bytes.len(), args.points as usize)?;
-    let points = eval::rate_distortion(&mesh, &budgets, args.samples, |b| {
+    let points = eval::rate_distortion(mesh, &budgets, args.samples, |b| {
         let d = decode(
-            &bytes,
+            bytes,
             &DecodeOptions {
                 max_bytes: Some(b),
                 trees: None,
@@ -164,7 +220,10 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             .iter()
             .map(|r| r.points.iter().map(|p| (p.bpv, p.psnr)).collect())
             .collect();
-        let label = format!("subwave ({})", opts.wavelet.name());
+        let label = match prep {
+            Some((_, opts)) => format!("subwave ({})", opts.wavelet.name()),
+            None => "subwave (direct)".to_string(),
+        };
         let mut series = vec![Series {
             name: &label,
             points: &mine,
@@ -187,71 +246,113 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     if args.json {
-        let v = json!({
-            "input": args.mesh.display().to_string(),
-            "input_vertices": mesh.num_vertices(),
-            "remeshed": prep.remeshed.is_some(),
-            "method": prep.remeshed.as_ref().map(|r| r.method.name()),
-            "normal_mesh": prep.normal.is_some(),
-            "fit": prep.fit,
-            "sharp_angle": prep.sharp_angle,
-            "features_detected": prep.features_detected,
-            "remesh_rms": prep.remesh_rms,
-            "input_rms": prep.input_distance.map(|d| d.0),
-            "input_max": prep.input_distance.map(|d| d.1),
-            "missed": prep.missed,
-            "raised": prep.raised,
-            "levels": h.levels(),
-            "base_faces": h.base.num_faces(),
-            "coded_vertices": h.positions.len(),
-            "wavelet": opts.wavelet.name(),
-            "stream_bytes": bytes.len(),
-            "header_bytes": info.header_bytes,
-            "base_bytes": info.base_bytes,
-            "encode_ms": encode_ms,
-            "points": points,
-            "references": references.iter().map(|r| json!({
+        let refs = references
+            .iter()
+            .map(|r| json!({
                 "name": r.name,
                 "points": r.points.iter().map(|p| json!({"bytes": p.bytes, "bpv": p.bpv, "psnr": p.psnr})).collect::<Vec<_>>(),
                 "ratios": points.iter().map(|p| ratio(r, p)).collect::<Vec<_>>(),
-            })).collect::<Vec<_>>(),
-        });
+            }))
+            .collect::<Vec<_>>();
+        let v = match prep {
+            Some((prep, opts)) => {
+                let h = &prep.hierarchy;
+                json!({
+                    "input": args.mesh.display().to_string(),
+                    "input_vertices": mesh.num_vertices(),
+                    "direct": false,
+                    "direct_comparison": comparison,
+                    "remeshed": prep.remeshed.is_some(),
+                    "method": prep.remeshed.as_ref().map(|r| r.method.name()),
+                    "normal_mesh": prep.normal.is_some(),
+                    "fit": prep.fit,
+                    "sharp_angle": prep.sharp_angle,
+                    "features_detected": prep.features_detected,
+                    "remesh_rms": prep.remesh_rms,
+                    "input_rms": prep.input_distance.map(|d| d.0),
+                    "input_max": prep.input_distance.map(|d| d.1),
+                    "missed": prep.missed,
+                    "raised": prep.raised,
+                    "levels": h.levels(),
+                    "base_faces": h.base.num_faces(),
+                    "coded_vertices": h.positions.len(),
+                    "wavelet": opts.wavelet.name(),
+                    "stream_bytes": bytes.len(),
+                    "header_bytes": info.header_bytes,
+                    "base_bytes": info.base_bytes,
+                    "encode_ms": encode_ms,
+                    "points": points,
+                    "references": refs,
+                })
+            }
+            None => json!({
+                "input": args.mesh.display().to_string(),
+                "input_vertices": mesh.num_vertices(),
+                "direct": true,
+                "direct_comparison": comparison,
+                "remeshed": false,
+                "levels": 0,
+                "coded_vertices": info.base_vertices,
+                "bits": info.bits,
+                "planes": info.planes,
+                "stream_bytes": bytes.len(),
+                "header_bytes": info.header_bytes,
+                "base_bytes": info.base_bytes,
+                "encode_ms": encode_ms,
+                "points": points,
+                "references": refs,
+            }),
+        };
         writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
         return Ok(());
     }
-    writeln!(
-        out,
-        "{name}: {} vertices; {}{} levels over {} base faces -> {} vertices; {} wavelet; {} bytes in {:.0} ms",
-        mesh.num_vertices(),
-        match &prep.remeshed {
-            Some(r) => format!(
-                "remeshed ({}{}{}), ",
-                r.method.name(),
-                if prep.normal.is_some() {
-                    ", normal mesh"
-                } else {
-                    ""
+    match prep {
+        Some((prep, opts)) => {
+            let h = &prep.hierarchy;
+            writeln!(
+                out,
+                "{name}: {} vertices; {}{} levels over {} base faces -> {} vertices; {} wavelet; {} bytes in {:.0} ms",
+                mesh.num_vertices(),
+                match &prep.remeshed {
+                    Some(r) => format!(
+                        "remeshed ({}{}{}), ",
+                        r.method.name(),
+                        if prep.normal.is_some() {
+                            ", normal mesh"
+                        } else {
+                            ""
+                        },
+                        match (prep.sharp_angle, prep.features_detected) {
+                            (Some(a), true) => format!(", creases above {a}° detected"),
+                            (Some(a), false) => format!(", creases above {a}°"),
+                            _ => String::new(),
+                        }
+                    ),
+                    None => String::new(),
                 },
-                match (prep.sharp_angle, prep.features_detected) {
-                    (Some(a), true) => format!(", creases above {a}° detected"),
-                    (Some(a), false) => format!(", creases above {a}°"),
-                    _ => String::new(),
-                }
-            ),
-            None => String::new(),
-        },
-        h.levels(),
-        h.base.num_faces(),
-        h.positions.len(),
-        opts.wavelet.name(),
-        bytes.len(),
-        encode_ms
-    )?;
+                h.levels(),
+                h.base.num_faces(),
+                h.positions.len(),
+                opts.wavelet.name(),
+                bytes.len(),
+                encode_ms
+            )?;
+        }
+        None => writeln!(
+            out,
+            "{name}: {} vertices; coded as it is (direct stream: {} bits, {} refinement planes); {} bytes in {:.0} ms",
+            mesh.num_vertices(),
+            info.bits,
+            info.planes,
+            bytes.len(),
+            encode_ms
+        )?,
+    }
     let mut header = format!(
         "  {:>9} {:>7} {:>11} {:>11} {:>7}",
         "bytes", "bpv", "rms", "hausdorff", "psnr"
     );
-    for r in &references {
+    for r in references {
         header.push_str(&format!(
             " {:>12} {:>6}",
             format!("{} bpv", r.name),
@@ -264,7 +365,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             "  {:>9} {:>7.3} {:>11.4e} {:>11.4e} {:>7.2}",
             p.bytes, p.bpv, p.rms, p.max, p.psnr
         );
-        for r in &references {
+        for r in references {
             match bpv_at_psnr(&r.points, p.psnr) {
                 Some(x) => line.push_str(&format!(" {:>12.3} {:>6.2}", x, p.bpv / x)),
                 None => line.push_str(&format!(" {:>12} {:>6}", "-", "-")),

@@ -244,6 +244,8 @@ fn irregular_input_is_remeshed() {
         "2",
         "--base-faces",
         "64",
+        "--direct",
+        "never",
     ]);
     assert!(out.contains("remeshed, 2 levels"), "{out}");
     let dec = dir.path().join("t.glb");
@@ -300,6 +302,66 @@ fn least_squares_offsets_and_on_surface() {
     );
 }
 
+/// A low-poly input is served better as it is than by its remesh: `encode` and `eval` weigh
+/// both and keep the direct stream (the coarse torus: 325 vertices); `--direct always` codes
+/// any input so, at `--bits` precision, and refuses what a direct stream cannot be; every
+/// direct stream decodes, its prefixes from the base chunk on.
+#[test]
+fn low_poly_input_is_coded_as_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("t.obj");
+    let torus = generate::torus(1.0, 0.4, 25, 13, true);
+    write_mesh(&torus, &mesh, None).unwrap();
+    let swv = dir.path().join("t.swv");
+    let (m, o) = (mesh.to_str().unwrap(), swv.to_str().unwrap());
+    let out = ok(&["encode", m, "-o", o]);
+    assert!(
+        out.contains("direct stream kept") && out.contains("coded as it is (direct stream)"),
+        "{out}"
+    );
+    let full = std::fs::read(&swv).unwrap().len();
+    let dec = dir.path().join("d.obj");
+    let d = dec.to_str().unwrap();
+    ok(&["decode", o, "-o", d]);
+    let back = subwave::io::read_mesh(&dec, None).unwrap();
+    assert_eq!(back.num_vertices(), torus.num_vertices());
+    assert_eq!(back.num_faces(), torus.num_faces());
+    let dist = subwave::distance::distance(&torus, &back, 5_000).unwrap();
+    assert!(dist.psnr > 90.0, "{dist:?}");
+    // A prefix before the base chunk ends is refused; one after decodes, further away.
+    let e = fails(&["decode", o, "-o", d, "--bytes", "100"]);
+    assert!(e.contains("truncated"), "{e}");
+    ok(&["decode", o, "-o", d, "--bytes", &(full - 200).to_string()]);
+    let cut = subwave::io::read_mesh(&dec, None).unwrap();
+    let dcut = subwave::distance::distance(&torus, &cut, 5_000).unwrap();
+    assert!(dcut.psnr < dist.psnr - 3.0, "{dcut:?} {dist:?}");
+    // Forced, at 10 bits: smaller.
+    let out = ok(&["encode", m, "-o", o, "--direct", "always", "--bits", "10"]);
+    assert!(
+        out.contains("10 bits, the first 8 in the base chunk, then 2 refinement planes"),
+        "{out}"
+    );
+    assert!(std::fs::read(&swv).unwrap().len() < full);
+    let e = fails(&["encode", m, "-o", o, "--direct", "always", "--bits", "6"]);
+    assert!(e.contains("at least 8 bits"), "{e}");
+    let e = fails(&[
+        "encode", m, "-o", o, "--direct", "always", "--layout", "trees",
+    ]);
+    assert!(e.contains("no trees"), "{e}");
+    // eval weighs the same and measures the direct stream.
+    let out = ok(&["eval", m, "--samples", "5000", "--points", "6", "--json"]);
+    let v: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["direct"], true, "{v}");
+    assert!(v["direct_comparison"]["bytes"].is_array(), "{v}");
+    let points = v["points"].as_array().unwrap();
+    let psnr = |p: &Value| p["psnr"].as_f64().unwrap();
+    assert!(
+        psnr(&points[points.len() - 1]) > psnr(&points[0]) + 20.0,
+        "{v}"
+    );
+    assert_eq!(v["stream_bytes"].as_u64().unwrap() as usize, full, "{v}");
+}
+
 /// `subwave eval` end to end: the rate-distortion points (JSON keys, bytes rising to the whole
 /// stream, bits per input vertex, PSNR not below the first point's), the remedies (none
 /// with given levels), the SVG plot and a peer's points compared at equal PSNR.
@@ -326,6 +388,8 @@ fn eval_reports_points_plot_and_peer_ratios() {
         "2",
         "--base-faces",
         "64",
+        "--direct",
+        "never",
         "--samples",
         "5000",
         "--points",
@@ -396,6 +460,8 @@ fn default_levels_are_raised_for_lossy_streams_only() {
             swv.to_str().unwrap(),
             "--base-faces",
             "40",
+            "--direct",
+            "never",
         ];
         if lossless {
             args.push("--lossless");

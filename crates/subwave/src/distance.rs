@@ -265,14 +265,17 @@ pub fn distance(a: &Mesh, b: &Mesh, samples: usize) -> Result<Distance> {
 pub fn sampled_rms_to(a: &Mesh, target: &ClosestPoint, samples: usize) -> Result<f64> {
     let ta = triangles(a, "A")?;
     let s = sample_surface(&a.positions, &ta, samples);
-    let sum: f64 = s
-        .par_iter()
-        .map(|&p| {
-            let d = target.distance(p);
-            d * d
-        })
-        .sum();
-    Ok((sum / s.len().max(1) as f64).sqrt())
+    Ok(rms_to(&s, target))
+}
+
+/// The RMS distance from `points` to the surface `target`, summed in fixed chunks so that
+/// the result does not depend on the threads' scheduling (0 for no points).
+pub fn rms_to(points: &[DVec3], target: &ClosestPoint) -> f64 {
+    let parts: Vec<f64> = points
+        .par_chunks(4096)
+        .map(|c| c.iter().map(|&p| target.distance(p).powi(2)).sum())
+        .collect();
+    (parts.into_iter().sum::<f64>() / points.len().max(1) as f64).sqrt()
 }
 
 /// `20 log10(diagonal / rms)` dB; infinite for `rms == 0`.

@@ -40,7 +40,7 @@ use crate::{Error, Result};
 /// The magic bytes.
 pub const MAGIC: [u8; 4] = *b"SWAV";
 /// The format version (bumped on every format change; the golden-bytes test pins it).
-pub const VERSION: u16 = 9;
+pub const VERSION: u16 = 10;
 /// Bytes of the fixed header fields.
 pub const HEADER_FIELDS: usize = 16 + 8 * 13 + 4 * 4;
 /// Fewest bytes of a chunk index entry (kind, one-byte id, length and mark count, CRC).
@@ -551,6 +551,45 @@ impl Container {
         self.chunks
             .last()
             .map_or(self.header_len as u64, |c| c.offset + c.len as u64)
+    }
+
+    /// The base mesh chunk (chunk 0) of `bytes`, whole and checked: a decoder needs all of it.
+    ///
+    /// # Errors
+    /// [`Error::Decode`] saying how many bytes are needed if `bytes` ends inside it; naming it
+    /// if it fails its checksum.
+    pub fn base_chunk<'a>(&self, bytes: &'a [u8]) -> Result<&'a [u8]> {
+        let (data, whole) = self.chunk(bytes, 0)?;
+        if !whole {
+            let e = &self.chunks[0];
+            return Err(Error::Decode {
+                offset: bytes.len(),
+                message: format!(
+                    "stream truncated in the base mesh chunk (the first {} bytes are needed)",
+                    e.offset + e.len as u64
+                ),
+            });
+        }
+        Ok(data)
+    }
+
+    /// Checks a decoded base mesh's counts (`vertices`, `faces`, face `corners`) against
+    /// the header's.
+    ///
+    /// # Errors
+    /// [`Error::Decode`] at the base chunk if any differs.
+    pub fn check_base_counts(&self, vertices: usize, faces: usize, corners: usize) -> Result<()> {
+        let h = &self.header;
+        if vertices != h.base_vertices as usize
+            || faces != h.base_faces as usize
+            || corners != h.base_corners as usize
+        {
+            return Err(Error::Decode {
+                offset: self.chunks[0].offset as usize,
+                message: "the base mesh chunk does not match the header's base counts".into(),
+            });
+        }
+        Ok(())
     }
 
     /// The bytes of chunk `i` present in `bytes` (all of them, a prefix, or none) and whether

@@ -1112,16 +1112,7 @@ pub(crate) fn decode(
     let h = &c.header;
     let entry0 = &c.chunks[0];
     let off = entry0.offset as usize;
-    let (data0, whole) = c.chunk(bytes, 0)?;
-    if !whole {
-        return Err(derr(
-            bytes.len(),
-            format!(
-                "stream truncated in the base mesh chunk (the first {} bytes are needed)",
-                entry0.offset + entry0.len as u64
-            ),
-        ));
-    }
+    let data0 = c.base_chunk(bytes)?;
     let name0 = entry0.name(0);
     let (k, data0) = if reference {
         match data0.split_first() {
@@ -1135,15 +1126,11 @@ pub(crate) fn decode(
     };
     let (mut base, base_q) =
         basemesh::decode_integers(data0).map_err(|e| derr(off, format!("{name0}: {e}")))?;
-    if base.num_vertices() != h.base_vertices as usize
-        || base.num_faces() != h.base_faces as usize
-        || base.face_indices.len() != h.base_corners as usize
-    {
-        return Err(derr(
-            off,
-            "the base mesh chunk does not match the header's base counts",
-        ));
-    }
+    c.check_base_counts(
+        base.num_vertices(),
+        base.num_faces(),
+        base.face_indices.len(),
+    )?;
     check_coords(&base_q, "the base mesh chunk")?;
     base.edge_tags.clear();
     base.vertex_tags.clear();

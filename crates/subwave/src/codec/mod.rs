@@ -7,6 +7,8 @@
 //! - [`basemesh`]: the single-rate coder of base meshes and irregular meshes (valence-driven
 //!   connectivity with Face Fixer polygons, parallelogram-predicted positions, run-length
 //!   crease flags);
+//! - [`direct`]: direct streams, an irregular mesh coded as it is (the base-mesh coder at a
+//!   coarse precision, then refinement planes) where a remesh does not pay;
 //! - [`eval`]: rate–distortion curves of progressive streams against the input mesh;
 //! - [`forest`]: the edge-offspring forest (MPEG-4 AFX) and the quad vertex/face forest;
 //! - [`quantize`]: coefficient and position quantization (Maret eqs. 4.7-4.12);
@@ -21,6 +23,7 @@
 
 pub mod basemesh;
 pub mod container;
+pub mod direct;
 pub mod eval;
 pub mod forest;
 pub mod lossless;

@@ -340,6 +340,10 @@ pub struct StreamInfo {
     pub contexts: bool,
     /// Lossless mode.
     pub lossless: bool,
+    /// A direct stream ([`super::direct`]): the input mesh itself, its planes refining the
+    /// base chunk's positions (`bits` is then the full precision, `planes` the refinement
+    /// planes).
+    pub direct: bool,
     /// The layout.
     pub layout: Layout,
     /// Subdivision levels.
@@ -377,6 +381,9 @@ const F_LOCAL: u8 = 2;
 const F_ALIGNED: u8 = 4;
 const F_CONTEXTS: u8 = 8;
 const F_LOSSLESS: u8 = 16;
+/// A direct stream ([`super::direct`]): the input mesh itself, no levels, with precision
+/// refinement planes after its base chunk (version 10).
+const F_DIRECT: u8 = 128;
 /// The base chunk is a [`super::basemesh`] stream (lossy mode).
 const F_BASEMESH: u8 = 32;
 /// Lossless streams: a Loop reference surface ([`super::lossless`]).
@@ -750,6 +757,48 @@ pub fn encode_with_info(h: &Hierarchy, opts: &EncodeOptions) -> Result<(Vec<u8>,
     Ok((container::write(&header, &chunks)?, stream_hierarchy))
 }
 
+/// Writes a direct stream's container ([`super::direct::encode`]): `base` the decoded base
+/// mesh (counts), `split` 0 for triangles, 1 for polygons, `bb` the positions' box, `grid`
+/// the `opts.bits` grid, `chunks` the base chunk and the refinement planes.
+pub(crate) fn write_direct(
+    base: &Mesh,
+    split: u8,
+    opts: &super::direct::DirectOptions,
+    bb: [DVec3; 2],
+    grid: &Grid,
+    vertices: usize,
+    chunks: &[(ChunkKind, u32, Vec<u8>, Vec<u32>)],
+) -> Result<Vec<u8>> {
+    let header = Header {
+        wavelet: if split == 0 {
+            Wavelet::Butterfly.id()
+        } else {
+            Wavelet::Cubic.id()
+        },
+        flags: F_DIRECT | F_BASEMESH,
+        split,
+        layout: 0,
+        levels: 0,
+        bits: opts.bits as u8,
+        base_bits: opts.coarse_bits as u8,
+        level_weight: 0,
+        top: [-1; 3],
+        tangent_shift: 0,
+        input_vertices: opts
+            .input_vertices
+            .unwrap_or(vertices.min(u32::MAX as usize) as u32),
+        bbox: bb,
+        steps: [grid.step; 3],
+        grid_origin: grid.origin,
+        grid_step: grid.step,
+        base_vertices: base.num_vertices() as u32,
+        base_faces: base.num_faces() as u32,
+        base_corners: base.face_indices.len() as u32,
+        num_trees: 0,
+    };
+    container::write(&header, chunks)
+}
+
 /// The RMS error over the vertices of the full decode of `N = bits` planes: the weighted
 /// details `weighted` (of `transform`, which analysed `reference`; node `n` of level
 /// `level[n]`, multiplied by `gains[level[n]]`, [`detail_scales`]) quantized with the steps
@@ -1118,11 +1167,18 @@ fn parse_within(bytes: &[u8], available: usize) -> Result<Parsed> {
             format!("{} levels (at most {MAX_LEVELS})", h.levels),
         ));
     }
-    if h.flags
-        & !(F_LIFTED | F_LOCAL | F_ALIGNED | F_CONTEXTS | F_LOSSLESS | F_BASEMESH | F_REFERENCE)
-        != 0
+    // Every flag bit has a meaning (version 10); a direct stream has no other flag than the
+    // base-mesh one, no levels and the embedded layout.
+    if h.flags & F_DIRECT != 0
+        && (h.flags != F_DIRECT | F_BASEMESH || h.layout != 0 || h.levels != 0)
     {
-        return Err(derr(11, format!("unknown flags {:#x}", h.flags)));
+        return Err(derr(
+            11,
+            format!(
+                "flags {:#x}: a direct stream has no other flag, no levels and the embedded layout",
+                h.flags
+            ),
+        ));
     }
     if h.level_weight as f64 > 4.0 * MAX_LEVEL_EXPONENT
         || (h.flags & F_LOSSLESS != 0 && h.level_weight != 0)
@@ -1208,13 +1264,18 @@ pub fn inspect(bytes: &[u8]) -> Result<StreamInfo> {
         },
         contexts: p.flags & F_CONTEXTS != 0,
         lossless: p.flags & F_LOSSLESS != 0,
+        direct: p.flags & F_DIRECT != 0,
         layout: p.layout,
         levels: h.levels as u32,
         bits: h.bits as u32,
         base_vertices: h.base_vertices,
         base_faces: h.base_faces,
         trees: h.num_trees,
-        planes: spiht::num_planes(p.top),
+        planes: if p.flags & F_DIRECT != 0 {
+            (h.bits as u32).saturating_sub(h.base_bits as u32)
+        } else {
+            spiht::num_planes(p.top)
+        },
         header_bytes: p.c.header_len,
         base_bytes: p.c.chunks[0].len as usize,
         total_bytes: p.c.total_len(),
@@ -1292,29 +1353,12 @@ type Base = (Hierarchy, Vec<[i64; 3]>, Vec<DVec3>);
 /// coefficients (lossless mode without the base-mesh coder).
 fn setup_base_mesh(p: &Parsed, bytes: &[u8]) -> Result<(Mesh, Vec<[i64; 3]>)> {
     let h = &p.c.header;
-    let (data, complete) = p.c.chunk(bytes, 0)?;
+    let data = p.c.base_chunk(bytes)?;
     let off = p.c.chunks[0].offset as usize;
-    if !complete {
-        return Err(derr(
-            bytes.len(),
-            format!(
-                "stream truncated in the base mesh chunk (the first {} bytes are needed)",
-                p.c.chunks[0].offset + p.c.chunks[0].len as u64
-            ),
-        ));
-    }
     let (base, base_q) = if p.flags & F_BASEMESH != 0 {
         let m = basemesh::decode(data)
             .map_err(|e| derr(off, format!("{}: {e}", p.c.chunks[0].name(0))))?;
-        if m.num_vertices() != h.base_vertices as usize
-            || m.num_faces() != h.base_faces as usize
-            || m.face_indices.len() != h.base_corners as usize
-        {
-            return Err(derr(
-                off,
-                "the base mesh chunk does not match the header's base counts",
-            ));
-        }
+        p.c.check_base_counts(m.num_vertices(), m.num_faces(), m.face_indices.len())?;
         (m, Vec::new())
     } else {
         let (mut m, q) = decode_base(
@@ -1406,6 +1450,20 @@ fn decode_in_pool(
     let limit = opts.max_bytes.map_or(available, |m| m.min(available));
     let bytes = &bytes[..limit];
     let p = parse_within(bytes, available)?;
+    if p.flags & F_DIRECT != 0 {
+        let params = super::direct::Params {
+            bits: p.c.header.bits as u32,
+            coarse_bits: p.c.header.base_bits as u32,
+        };
+        let d = super::direct::decode(&p.c, &params, bytes)?;
+        return Ok(Decoded {
+            mesh: d.mesh,
+            bytes_used: d.bytes_used,
+            planes_complete: d.planes_complete,
+            planes: d.planes,
+            complete: d.complete,
+        });
+    }
     if p.flags & F_LOSSLESS != 0 && p.flags & F_BASEMESH != 0 {
         let d = lossless::decode(
             &p.c,
