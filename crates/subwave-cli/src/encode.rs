@@ -7,8 +7,8 @@ use anyhow::{bail, Result};
 use clap::ValueEnum;
 use subwave::codec::direct;
 use subwave::codec::normal_line::SnapOptions;
-use subwave::codec::prepare::{prepare, PrepareOptions};
-use subwave::codec::progressive::{encode, inspect, Layout, StreamInfo, Wavelet};
+use subwave::codec::prepare::{prepare_screened, PrepareOptions, Prepared};
+use subwave::codec::progressive::{encode, inspect, EncodeOptions, Layout, StreamInfo, Wavelet};
 use subwave::codec::quantize::ComponentMode;
 use subwave::io::read_mesh;
 use subwave::subdivision::refine::Split;
@@ -150,6 +150,23 @@ pub fn direct_stream(mesh: &subwave::Mesh, bits: u32, name: &str) -> Result<Vec<
     .map_err(|e| anyhow::anyhow!("{name}: {e}"))
 }
 
+/// The direct stream of `mesh` at [`direct::DEFAULT_BITS`] for `--direct auto`; `None`, with a warning, if the
+/// input cannot be coded as it is.
+pub fn direct_stream_quiet(mesh: &subwave::Mesh, name: &str) -> Option<Vec<u8>> {
+    let opts = direct::DirectOptions {
+        bits: direct::DEFAULT_BITS,
+        input_vertices: Some(mesh.num_vertices() as u32),
+        ..Default::default()
+    };
+    match direct::codable(mesh).and_then(|(m, _)| direct::encode(&m, &opts)) {
+        Ok(b) => Some(b),
+        Err(e) => {
+            tracing::warn!("{name}: not coded as it is ({e}); the remesh is kept");
+            None
+        }
+    }
+}
+
 /// The direct stream of `mesh` (at [`direct::DEFAULT_BITS`]) and its comparison with the
 /// wavelet stream `wavelet` (`--direct auto`); `None`, with a warning, if the input cannot be
 /// coded as it is (the wavelet stream is then kept).
@@ -158,14 +175,11 @@ pub fn weigh_direct(
     wavelet: &[u8],
     name: &str,
 ) -> Option<(Vec<u8>, direct::Comparison)> {
-    let opts = direct::DirectOptions {
-        input_vertices: Some(mesh.num_vertices() as u32),
-        ..Default::default()
-    };
-    match direct::encode_and_compare(mesh, wavelet, &opts) {
-        Ok((bytes, c, _)) => Some((bytes, c)),
+    let bytes = direct_stream_quiet(mesh, name)?;
+    match direct::compare(mesh, wavelet, &bytes) {
+        Ok(c) => Some((bytes, c)),
         Err(e) => {
-            tracing::warn!("{name}: not coded as it is ({e}); the remesh is kept");
+            tracing::warn!("{name}: the direct stream was not weighed ({e}); the remesh is kept");
             None
         }
     }
@@ -284,8 +298,38 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
             ..SnapOptions::default()
         });
     }
-    let prepared = crate::progress::with_bar("remesh", false, |cb| prepare(&mesh, &popts, cb))
-        .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    // `--direct auto` on an irregular input coded lossy and embedded: the direct stream is
+    // weighed against the remesh's (`weigh_direct`); where it beats a remesh that would be
+    // redone with more levels at its first two budgets already, that is not done.
+    let weigh =
+        args.prep.direct == DirectArg::Auto && !args.lossless && args.layout == LayoutArg::Embedded;
+    let mut screened: Option<(Vec<u8>, direct::Comparison)> = None;
+    let prepared = crate::progress::with_bar("remesh", false, |cb| {
+        prepare_screened(&mesh, &popts, cb, &mut |p| {
+            if !weigh {
+                return Ok(true);
+            }
+            let wavelet = encode_options(args, p, input_vertices, &name)
+                .map_err(|e| subwave::Error::InvalidArgument(e.to_string()))
+                .and_then(|o| encode(&p.hierarchy, &o))?;
+            let Some(direct) = direct_stream_quiet(&mesh, &name) else {
+                return Ok(true);
+            };
+            let (wins, c) = direct::screen(&mesh, &wavelet, &direct)?;
+            if wins {
+                screened = Some((direct, c));
+            }
+            Ok(!wins)
+        })
+    })
+    .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    if let Some((direct, c)) = screened {
+        println!(
+            "{}; the remesh was not redone with more levels",
+            comparison_line(&c, true)
+        );
+        return write_direct(args, &direct, input_vertices, t0);
+    }
     let prepare_ms = t0.elapsed().as_secs_f64() * 1e3;
     let remeshed = prepared.remeshed.is_some();
     // Stage times of the remesh (and the normal re-sampling after it), for the final line.
@@ -352,52 +396,12 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
             );
         }
     }
-    let mut opts = prepared.encode_options();
-    let h = prepared.hierarchy;
-    if let Some(w) = args.wavelet {
-        opts.wavelet = w.into();
-    }
-    if opts.wavelet.is_quad() != (h.split == Split::Polygons) {
-        bail!(
-            "{name}: the {} wavelet does not fit this {} mesh (triangles: loop, butterfly, midpoint; quads: linear, cubic)",
-            opts.wavelet.name(),
-            if h.split == Split::Triangles { "triangle" } else { "quad" }
-        );
-    }
-    if let Some(f) = args.frames {
-        opts.frames = f.into();
-    }
-    opts.components = match args.components {
-        ComponentsArg::Aligned => ComponentMode::Aligned,
-        ComponentsArg::Independent => ComponentMode::Independent,
-    };
-    opts.layout = match args.layout {
-        LayoutArg::Embedded => Layout::Embedded,
-        LayoutArg::Trees => Layout::Trees,
-    };
-    opts.lossless = args.lossless;
-    if args.lossless && opts.wavelet == Wavelet::Loop {
-        bail!("--lossless needs an integer wavelet: butterfly or midpoint (triangles), linear or cubic (quads)");
-    }
-    opts.lifted = args.lossless || (opts.lifted && !args.unlifted);
-    opts.contexts = !args.no_contexts;
-    if let Some(b) = args.bits {
-        opts.bits = b;
-        opts.max_rms = None;
-    } else if args.lossless {
-        opts.bits = LOSSLESS_BITS;
-    }
-    opts.input_vertices = Some(input_vertices as u32);
-    opts.level_exponent = args.level_exponent;
-    opts.tangent_shift = args.tangent_shift;
+    let h = &prepared.hierarchy;
+    let opts = encode_options(args, &prepared, input_vertices, &name)?;
     let t_code = Instant::now();
-    let bytes = encode(&h, &opts).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let bytes = encode(h, &opts).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let code_ms = t_code.elapsed().as_secs_f64() * 1e3;
-    if args.prep.direct == DirectArg::Auto
-        && remeshed
-        && !args.lossless
-        && opts.layout == Layout::Embedded
-    {
+    if weigh && remeshed {
         let t = Instant::now();
         if let Some((direct, c)) = weigh_direct(&mesh, &bytes, &name) {
             let chosen = c.prefer_direct();
@@ -449,6 +453,54 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     }
     out.flush()?;
     Ok(())
+}
+
+/// The encoder options for `prepared` with the command line's choices (`name` for errors).
+fn encode_options(
+    args: &EncodeArgs,
+    prepared: &Prepared,
+    input_vertices: usize,
+    name: &str,
+) -> Result<EncodeOptions> {
+    let mut opts = prepared.encode_options();
+    let h = &prepared.hierarchy;
+    if let Some(w) = args.wavelet {
+        opts.wavelet = w.into();
+    }
+    if opts.wavelet.is_quad() != (h.split == Split::Polygons) {
+        bail!(
+            "{name}: the {} wavelet does not fit this {} mesh (triangles: loop, butterfly, midpoint; quads: linear, cubic)",
+            opts.wavelet.name(),
+            if h.split == Split::Triangles { "triangle" } else { "quad" }
+        );
+    }
+    if let Some(f) = args.frames {
+        opts.frames = f.into();
+    }
+    opts.components = match args.components {
+        ComponentsArg::Aligned => ComponentMode::Aligned,
+        ComponentsArg::Independent => ComponentMode::Independent,
+    };
+    opts.layout = match args.layout {
+        LayoutArg::Embedded => Layout::Embedded,
+        LayoutArg::Trees => Layout::Trees,
+    };
+    opts.lossless = args.lossless;
+    if args.lossless && opts.wavelet == Wavelet::Loop {
+        bail!("--lossless needs an integer wavelet: butterfly or midpoint (triangles), linear or cubic (quads)");
+    }
+    opts.lifted = args.lossless || (opts.lifted && !args.unlifted);
+    opts.contexts = !args.no_contexts;
+    if let Some(b) = args.bits {
+        opts.bits = b;
+        opts.max_rms = None;
+    } else if args.lossless {
+        opts.bits = LOSSLESS_BITS;
+    }
+    opts.input_vertices = Some(input_vertices as u32);
+    opts.level_exponent = args.level_exponent;
+    opts.tangent_shift = args.tangent_shift;
+    Ok(opts)
 }
 
 /// Writes the direct stream `bytes` and prints what it is.

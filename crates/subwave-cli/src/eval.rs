@@ -11,7 +11,7 @@ use anyhow::{bail, Context, Result};
 use serde_json::json;
 use subwave::codec::direct;
 use subwave::codec::eval::{self, bpv_at_psnr, RdPoint};
-use subwave::codec::prepare::{prepare, Prepared};
+use subwave::codec::prepare::{prepare_screened, Prepared};
 use subwave::codec::progressive::{decode, encode, inspect, DecodeOptions, EncodeOptions};
 use subwave::io::read_mesh;
 
@@ -140,10 +140,39 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         return report(args, &mesh, &references, None, &bytes, encode_ms, None);
     }
     let quads = matches!(args.wavelet, Some(WaveletArg::Linear | WaveletArg::Cubic));
+    // `--direct auto`, as `subwave encode` weighs it: where the direct stream beats a remesh
+    // that would be redone with more levels at its first two budgets, that is not done.
+    let auto = args.prep.direct == DirectArg::Auto;
+    let mut screened: Option<(Vec<u8>, direct::Comparison)> = None;
     let prep = progress::with_bar("prepare", args.json, |cb| {
-        prepare(&mesh, &args.prep.options(quads), cb)
+        prepare_screened(&mesh, &args.prep.options(quads), cb, &mut |p| {
+            if !auto {
+                return Ok(true);
+            }
+            let mut o = options(args, p);
+            o.input_vertices = Some(mesh.num_vertices() as u32);
+            let wavelet = encode(&p.hierarchy, &o)?;
+            let Some(direct) = crate::encode::direct_stream_quiet(&mesh, &name) else {
+                return Ok(true);
+            };
+            let (wins, c) = direct::screen(&mesh, &wavelet, &direct)?;
+            if wins {
+                screened = Some((direct, c));
+            }
+            Ok(!wins)
+        })
     })
     .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    if let Some((direct, c)) = screened {
+        if !args.json {
+            println!(
+                "{}; the remesh was not redone with more levels",
+                crate::encode::comparison_line(&c, true)
+            );
+        }
+        let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
+        return report(args, &mesh, &references, None, &direct, encode_ms, Some(c));
+    }
     if let Some(line) = print::input_distance(&prep, mesh.diagonal()).filter(|_| !args.json) {
         println!("{line}");
     }

@@ -283,6 +283,19 @@ fn a_coarse_polyhedron_prefers_the_direct_stream() {
     assert!(c.prefer_direct(), "{c:?}");
     assert!(direct.len() < wavelet.len());
     assert_eq!(c, compare(&input, &wavelet, &direct).unwrap());
+    // The screen before a raise: both of the first two budgets won.
+    let (wins, s) = direct::screen(&input, &wavelet, &direct).unwrap();
+    assert!(wins, "{s:?}");
+    assert_eq!((s.planned, s.bytes.len()), (2, 2));
+    assert!(s
+        .direct_psnr
+        .iter()
+        .zip(&s.wavelet_psnr)
+        .all(|(d, w)| d > w));
+    // Against itself (a direct stream is no wavelet stream, but any stream decodes the
+    // same): no budget is won.
+    let (wins, s) = direct::screen(&input, &direct, &direct).unwrap();
+    assert!(!wins && s.bytes.len() == 1, "{s:?}");
 
     let at = |w: &[f64], d: &[f64]| Comparison {
         bytes: vec![1; w.len()],

@@ -539,6 +539,36 @@ impl Target {
 /// # Errors
 /// A stream that does not decode, or a decoded mesh without faces.
 pub fn compare(input: &Mesh, wavelet: &[u8], direct: &[u8]) -> Result<Comparison> {
+    measure(input, wavelet, direct, &[0, 2, 4], |c| {
+        let wins = c.direct_wins();
+        2 * wins > c.planned || 2 * (c.bytes.len() - wins) >= c.planned
+    })
+}
+
+/// Whether the direct stream `direct` of `input` is closer to it than the wavelet stream
+/// `wavelet` at both of the first two budgets of [`Comparison`] (about 64 and 76 dB): then
+/// a remesh with more levels, which costs more bytes at low rates and gains near its top,
+/// would not win either, and `subwave encode` need not build it
+/// ([`super::prepare::prepare_screened`]). Also returns the comparison.
+///
+/// # Errors
+/// As [`compare`].
+pub fn screen(input: &Mesh, wavelet: &[u8], direct: &[u8]) -> Result<(bool, Comparison)> {
+    let c = measure(input, wavelet, direct, &[0, 2], |c| {
+        c.direct_wins() < c.bytes.len()
+    })?;
+    Ok((c.direct_wins() == c.planned && c.planned > 0, c))
+}
+
+/// The budgets at the ends of the direct stream's chunks `chunks` (those it has), measured in
+/// order until `decided`.
+fn measure(
+    input: &Mesh,
+    wavelet: &[u8],
+    direct: &[u8],
+    chunks: &[usize],
+    decided: impl Fn(&Comparison) -> bool,
+) -> Result<Comparison> {
     let ends = |stream: &[u8]| -> Result<Vec<usize>> {
         Ok(super::container::read(stream)?
             .chunks
@@ -549,7 +579,7 @@ pub fn compare(input: &Mesh, wavelet: &[u8], direct: &[u8]) -> Result<Comparison
     let direct_ends = ends(direct)?;
     // A prefix that ends before a stream's base chunk does not decode: no mesh at all.
     let wavelet_first = ends(wavelet)?[0];
-    let budgets: Vec<usize> = [0, 2, 4]
+    let budgets: Vec<usize> = chunks
         .iter()
         .filter_map(|&i| direct_ends.get(i).copied())
         .collect();
@@ -581,8 +611,7 @@ pub fn compare(input: &Mesh, wavelet: &[u8], direct: &[u8]) -> Result<Comparison
         c.bytes.push(b);
         c.wavelet_psnr.push(w?);
         c.direct_psnr.push(d?);
-        let wins = c.direct_wins();
-        if 2 * wins > c.planned || 2 * (c.bytes.len() - wins) >= c.planned {
+        if decided(&c) {
             break;
         }
     }

@@ -334,6 +334,22 @@ pub fn prepare(
     opts: &PrepareOptions,
     progress: &mut dyn FnMut(&str, f64),
 ) -> Result<Prepared> {
+    prepare_screened(mesh, opts, progress, &mut |_| Ok(true))
+}
+
+/// [`prepare`], asking `raise(remesh)` before it redoes a remesh with more levels
+/// ([`PrepareOptions::raise_levels`]): `false` returns that remesh as it is (`raised`
+/// `None`). `subwave encode` screens there whether the input coded as it is
+/// ([`super::direct`]) already beats the remesh, so that it need not build the larger one.
+///
+/// # Errors
+/// As [`prepare`], and `raise`'s.
+pub fn prepare_screened(
+    mesh: &Mesh,
+    opts: &PrepareOptions,
+    progress: &mut dyn FnMut(&str, f64),
+    raise: &mut dyn FnMut(&Prepared) -> Result<bool>,
+) -> Result<Prepared> {
     if mesh.num_faces() == 0 {
         return Err(Error::InvalidArgument(
             "the mesh has no faces: nothing to code".to_string(),
@@ -502,6 +518,23 @@ pub fn prepare(
             let psnr = crate::distance::psnr(diagonal, rms);
             let base_faces = r.hierarchy.base.num_faces();
             let levels = raised_levels(ro.levels, base_faces, psnr);
+            let prepared = |r: &Remeshed| Prepared {
+                hierarchy: r.hierarchy.clone(),
+                remeshed: Some(r.clone()),
+                normal: normal.clone(),
+                sharp_angle,
+                features_detected: detected.is_some(),
+                fit,
+                snap: snap.clone(),
+                remesh_rms: Some(remesh_rms),
+                input_distance,
+                missed: missed.clone(),
+                raised: None,
+                distance_ms,
+            };
+            if levels > ro.levels && !raise(&prepared(&r))? {
+                return Ok(prepared(&r));
+            }
             if levels > ro.levels {
                 tracing::debug!(
                     psnr,
