@@ -150,11 +150,11 @@ pub fn direct_stream(mesh: &subwave::Mesh, bits: u32, name: &str) -> Result<Vec<
     .map_err(|e| anyhow::anyhow!("{name}: {e}"))
 }
 
-/// The direct stream of `mesh` at [`direct::DEFAULT_BITS`] for `--direct auto`; `None`, with a warning, if the
+/// The direct stream of `mesh` at `bits` for `--direct auto`; `None`, with a warning, if the
 /// input cannot be coded as it is.
-pub fn direct_stream_quiet(mesh: &subwave::Mesh, name: &str) -> Option<Vec<u8>> {
+pub fn direct_stream_quiet(mesh: &subwave::Mesh, bits: u32, name: &str) -> Option<Vec<u8>> {
     let opts = direct::DirectOptions {
-        bits: direct::DEFAULT_BITS,
+        bits,
         input_vertices: Some(mesh.num_vertices() as u32),
         ..Default::default()
     };
@@ -175,7 +175,7 @@ pub fn weigh_direct(
     wavelet: &[u8],
     name: &str,
 ) -> Option<(Vec<u8>, direct::Comparison)> {
-    let bytes = direct_stream_quiet(mesh, name)?;
+    let bytes = direct_stream_quiet(mesh, direct::DEFAULT_BITS, name)?;
     match direct::compare(mesh, wavelet, &bytes) {
         Ok(c) => Some((bytes, c)),
         Err(e) => {
@@ -312,7 +312,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
             let wavelet = encode_options(args, p, input_vertices, &name)
                 .map_err(|e| subwave::Error::InvalidArgument(e.to_string()))
                 .and_then(|o| encode(&p.hierarchy, &o))?;
-            let Some(direct) = direct_stream_quiet(&mesh, &name) else {
+            let Some(direct) = direct_stream_quiet(&mesh, direct::DEFAULT_BITS, &name) else {
                 return Ok(true);
             };
             let (wins, c) = direct::screen(&mesh, &wavelet, &direct)?;
@@ -401,6 +401,28 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     let t_code = Instant::now();
     let bytes = encode(h, &opts).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let code_ms = t_code.elapsed().as_secs_f64() * 1e3;
+    // `--lossless --direct auto` on an irregular input: the input itself on the same grid,
+    // exactly, where that takes no more bytes than the remesh (which is not the input).
+    let bits = opts.bits;
+    if args.prep.direct == DirectArg::Auto
+        && args.lossless
+        && remeshed
+        && args.layout == LayoutArg::Embedded
+        && bits >= direct::COARSE_BITS
+    {
+        if let Some(direct) = direct_stream_quiet(&mesh, bits, &name) {
+            let chosen = direct.len() <= bytes.len();
+            println!(
+                "direct: the input coded as it is, exactly on the same {bits}-bit grid, takes {} bytes against the remesh's {}: {} (--direct always|never chooses)",
+                direct.len(),
+                bytes.len(),
+                if chosen { "direct stream kept" } else { "remesh kept" }
+            );
+            if chosen {
+                return write_direct(args, &direct, input_vertices, t0);
+            }
+        }
+    }
     if weigh && remeshed {
         let t = Instant::now();
         if let Some((direct, c)) = weigh_direct(&mesh, &bytes, &name) {

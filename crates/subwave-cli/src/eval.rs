@@ -152,7 +152,9 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             let mut o = options(args, p);
             o.input_vertices = Some(mesh.num_vertices() as u32);
             let wavelet = encode(&p.hierarchy, &o)?;
-            let Some(direct) = crate::encode::direct_stream_quiet(&mesh, &name) else {
+            let Some(direct) =
+                crate::encode::direct_stream_quiet(&mesh, direct::DEFAULT_BITS, &name)
+            else {
                 return Ok(true);
             };
             let (wins, c) = direct::screen(&mesh, &wavelet, &direct)?;
