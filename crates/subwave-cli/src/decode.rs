@@ -73,12 +73,17 @@ pub fn run(args: &DecodeArgs) -> Result<()> {
     let mut out = stdout.lock();
     writeln!(
         out,
-        "{name}: {} of {} bytes ({:.2} bits per input vertex), {}/{} bit planes{} -> {} vertices, {} faces in {}",
+        "{name}: {} of {} bytes ({:.2} bits per input vertex), {}/{} {}{} -> {} vertices, {} faces in {}",
         d.bytes_used,
         bytes.len(),
         8.0 * d.bytes_used as f64 / info.input_vertices.max(1) as f64,
         d.planes_complete,
         d.planes,
+        if info.direct {
+            "refinement planes of a direct stream"
+        } else {
+            "bit planes"
+        },
         if d.complete { " (complete)" } else { "" },
         d.mesh.num_vertices(),
         d.mesh.num_faces(),
