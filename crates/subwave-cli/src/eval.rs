@@ -157,7 +157,13 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             else {
                 return Ok(true);
             };
-            let (wins, c) = direct::screen(&mesh, &wavelet, &direct)?;
+            let (wins, c) = match direct::screen(&mesh, &wavelet, &direct) {
+                Ok(x) => x,
+                Err(e) => {
+                    tracing::warn!("{name}: the direct stream was not weighed ({e})");
+                    return Ok(true);
+                }
+            };
             if wins {
                 screened = Some((direct, c));
             }

@@ -101,8 +101,9 @@ pub(crate) struct Params {
 }
 
 /// The context bin of the next bit of a coordinate whose interval is `[lo, lo + 2^r)`
-/// (fine-grid units, `r ≥ 1` bits unknown), given the neighbours' prediction `pred`: where
-/// `pred` falls, in eighths of the interval's halves and beyond it.
+/// (fine-grid units, `r ≥ 1` bits unknown), given the neighbours' prediction `pred`: which
+/// quarter of the interval `pred` falls in, or whether it is within half an interval below
+/// or above it, or further (a non-finite prediction counts as the second quarter).
 #[inline]
 fn bin(pred: f64, lo: u64, r: u32) -> usize {
     let u = (pred - lo as f64) / (1u64 << r) as f64;
