@@ -116,7 +116,9 @@ pub struct PrepareArgs {
     /// 8 bits, then one refinement plane per bit up to 14, or --bits with --direct always)
     /// instead of its remesh: auto (the default) keeps the direct stream where it is closer
     /// to the input than the remesh's stream at the same bytes at most of three budgets
-    /// (about 64, 76 and 88 dB) — low-poly meshes such as suzanne, cow, beetle or teapot.
+    /// (about 64, 76 and 88 dB) — low-poly meshes such as suzanne, cow, beetle or teapot —
+    /// and, with --lossless, where it takes no more bytes than the remesh's lossless stream
+    /// (it then decodes to the input itself on the same grid).
     #[arg(long, value_enum, default_value_t = DirectArg::Auto)]
     pub direct: DirectArg,
 }
@@ -124,7 +126,7 @@ pub struct PrepareArgs {
 /// `--direct`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum DirectArg {
-    /// The direct stream where it beats the remesh's (irregular, lossy, embedded input).
+    /// The direct stream where it beats the remesh's (irregular input, embedded layout).
     Auto,
     /// Always a direct stream.
     Always,

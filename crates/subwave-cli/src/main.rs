@@ -108,7 +108,8 @@ pub struct EvalArgs {
     /// The wavelet (default: butterfly on triangle meshes, cubic on quad meshes).
     #[arg(long, value_enum)]
     pub wavelet: Option<encode::WaveletArg>,
-    /// Bit planes of the coefficient quantization (eq. 4.8; default as `encode`).
+    /// Bit planes of the coefficient quantization (eq. 4.8; default as `encode`), or with
+    /// --direct always the precision of the direct stream (default 14, at least 8).
     #[arg(long, value_name = "B", value_parser = clap::value_parser!(u32).range(1..=30))]
     pub bits: Option<u32>,
     /// Level weight of the lossy details: level j's details are weighted by 2^(-EXP*j) before
@@ -170,7 +171,8 @@ pub struct EncodeArgs {
     pub unlifted: bool,
     /// Bit planes of the coefficient quantization (eq. 4.8; default 16, fewer for a remeshed
     /// input: only those that bring the stream closer to the input than a quarter of the
-    /// remesh's own distance), or with --lossless the bits of the position grid (default 12).
+    /// remesh's own distance), or with --lossless the bits of the position grid (default 12),
+    /// or with --direct always the precision of the direct stream (default 14, at least 8).
     #[arg(long, value_name = "B", value_parser = clap::value_parser!(u32).range(1..=30))]
     pub bits: Option<u32>,
     /// Level weight of the lossy details: level j's details are weighted by 2^(-EXP*j) before
