@@ -382,7 +382,8 @@ const F_ALIGNED: u8 = 4;
 const F_CONTEXTS: u8 = 8;
 const F_LOSSLESS: u8 = 16;
 /// A direct stream ([`super::direct`]): the input mesh itself, no levels, with precision
-/// refinement planes after its base chunk (version 10).
+/// refinement planes after its base chunk (version 10). Always with [`F_BASEMESH`] alone:
+/// its base chunk holds a base-mesh stream behind its length, then the polygons' rotations.
 const F_DIRECT: u8 = 128;
 /// The base chunk is a [`super::basemesh`] stream (lossy mode).
 const F_BASEMESH: u8 = 32;
