@@ -154,7 +154,7 @@ pub fn direct_stream(mesh: &subwave::Mesh, bits: u32, name: &str) -> Result<Vec<
 
 /// The direct stream of `mesh` at `bits` for `--direct auto`; `None`, with a warning, if the
 /// input cannot be coded as it is.
-pub fn direct_stream_quiet(mesh: &subwave::Mesh, bits: u32, name: &str) -> Option<Vec<u8>> {
+fn direct_stream_quiet(mesh: &subwave::Mesh, bits: u32, name: &str) -> Option<Vec<u8>> {
     let opts = direct::DirectOptions {
         bits,
         input_vertices: Some(mesh.num_vertices() as u32),
@@ -182,6 +182,26 @@ pub fn weigh_direct(
         Ok(c) => Some((bytes, c)),
         Err(e) => {
             tracing::warn!("{name}: the direct stream was not weighed ({e}); the remesh is kept");
+            None
+        }
+    }
+}
+
+/// [`direct::screen`] of `mesh`'s direct stream against the wavelet stream `wavelet` of a
+/// remesh about to be redone with more levels: the direct stream and the comparison if it
+/// wins (the remesh is then not redone); `None` otherwise, with a warning if it could not
+/// be measured.
+pub fn screen_direct(
+    mesh: &subwave::Mesh,
+    wavelet: &[u8],
+    name: &str,
+) -> Option<(Vec<u8>, direct::Comparison)> {
+    let direct = direct_stream_quiet(mesh, direct::DEFAULT_BITS, name)?;
+    match direct::screen(mesh, wavelet, &direct) {
+        Ok((true, c)) => Some((direct, c)),
+        Ok((false, _)) => None,
+        Err(e) => {
+            tracing::warn!("{name}: the direct stream was not weighed ({e})");
             None
         }
     }
@@ -314,20 +334,8 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
             let wavelet = encode_options(args, p, input_vertices, &name)
                 .map_err(|e| subwave::Error::InvalidArgument(e.to_string()))
                 .and_then(|o| encode(&p.hierarchy, &o))?;
-            let Some(direct) = direct_stream_quiet(&mesh, direct::DEFAULT_BITS, &name) else {
-                return Ok(true);
-            };
-            let (wins, c) = match direct::screen(&mesh, &wavelet, &direct) {
-                Ok(x) => x,
-                Err(e) => {
-                    tracing::warn!("{name}: the direct stream was not weighed ({e})");
-                    return Ok(true);
-                }
-            };
-            if wins {
-                screened = Some((direct, c));
-            }
-            Ok(!wins)
+            screened = screen_direct(&mesh, &wavelet, &name);
+            Ok(screened.is_none())
         })
     })
     .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;

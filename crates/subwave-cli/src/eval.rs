@@ -152,22 +152,8 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             let mut o = options(args, p);
             o.input_vertices = Some(mesh.num_vertices() as u32);
             let wavelet = encode(&p.hierarchy, &o)?;
-            let Some(direct) =
-                crate::encode::direct_stream_quiet(&mesh, direct::DEFAULT_BITS, &name)
-            else {
-                return Ok(true);
-            };
-            let (wins, c) = match direct::screen(&mesh, &wavelet, &direct) {
-                Ok(x) => x,
-                Err(e) => {
-                    tracing::warn!("{name}: the direct stream was not weighed ({e})");
-                    return Ok(true);
-                }
-            };
-            if wins {
-                screened = Some((direct, c));
-            }
-            Ok(!wins)
+            screened = crate::encode::screen_direct(&mesh, &wavelet, &name);
+            Ok(screened.is_none())
         })
     })
     .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
