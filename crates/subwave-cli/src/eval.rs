@@ -277,14 +277,23 @@ fn report(
                 "ratios": points.iter().map(|p| ratio(r, p)).collect::<Vec<_>>(),
             }))
             .collect::<Vec<_>>();
-        let v = match prep {
+        // The keys of every stream, then those of a wavelet or a direct stream.
+        let mut v = json!({
+            "input": args.mesh.display().to_string(),
+            "input_vertices": mesh.num_vertices(),
+            "direct": prep.is_none(),
+            "direct_comparison": comparison,
+            "stream_bytes": bytes.len(),
+            "header_bytes": info.header_bytes,
+            "base_bytes": info.base_bytes,
+            "encode_ms": encode_ms,
+            "points": points,
+            "references": refs,
+        });
+        let more = match prep {
             Some((prep, opts)) => {
                 let h = &prep.hierarchy;
                 json!({
-                    "input": args.mesh.display().to_string(),
-                    "input_vertices": mesh.num_vertices(),
-                    "direct": false,
-                    "direct_comparison": comparison,
                     "remeshed": prep.remeshed.is_some(),
                     "method": prep.remeshed.as_ref().map(|r| r.method.name()),
                     "normal_mesh": prep.normal.is_some(),
@@ -300,32 +309,19 @@ fn report(
                     "base_faces": h.base.num_faces(),
                     "coded_vertices": h.positions.len(),
                     "wavelet": opts.wavelet.name(),
-                    "stream_bytes": bytes.len(),
-                    "header_bytes": info.header_bytes,
-                    "base_bytes": info.base_bytes,
-                    "encode_ms": encode_ms,
-                    "points": points,
-                    "references": refs,
                 })
             }
             None => json!({
-                "input": args.mesh.display().to_string(),
-                "input_vertices": mesh.num_vertices(),
-                "direct": true,
-                "direct_comparison": comparison,
                 "remeshed": false,
                 "levels": 0,
                 "coded_vertices": info.base_vertices,
                 "bits": info.bits,
                 "planes": info.planes,
-                "stream_bytes": bytes.len(),
-                "header_bytes": info.header_bytes,
-                "base_bytes": info.base_bytes,
-                "encode_ms": encode_ms,
-                "points": points,
-                "references": refs,
             }),
         };
+        if let (Some(v), serde_json::Value::Object(more)) = (v.as_object_mut(), more) {
+            v.extend(more);
+        }
         writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
         return Ok(());
     }
