@@ -134,34 +134,37 @@ pub enum DirectArg {
     Never,
 }
 
-/// The direct stream of `mesh` (`--direct always`, or `auto` where it wins), with a line
-/// saying what it is.
-pub fn direct_stream(mesh: &subwave::Mesh, bits: u32, name: &str) -> Result<Vec<u8>> {
-    let (m, repair) = direct::codable(mesh).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
-    if let Some(s) = repair.as_ref().and_then(|r| r.repair_summary()) {
-        tracing::warn!("{name}: repaired the input into a manifold for the direct stream: {s}");
-    }
-    direct::encode(
-        &m,
-        &direct::DirectOptions {
-            bits,
-            input_vertices: Some(mesh.num_vertices() as u32),
-            ..Default::default()
-        },
-    )
-    .map_err(|e| anyhow::anyhow!("{name}: {e}"))
-}
-
-/// The direct stream of `mesh` at `bits` for `--direct auto`; `None`, with a warning, if the
-/// input cannot be coded as it is.
-fn direct_stream_quiet(mesh: &subwave::Mesh, bits: u32, name: &str) -> Option<Vec<u8>> {
+/// The direct stream of `mesh` at `bits` (repaired into a manifold if it must be), and what
+/// the repair did.
+fn code_directly(
+    mesh: &subwave::Mesh,
+    bits: u32,
+) -> subwave::Result<(Vec<u8>, Option<subwave::remesh::RepairReport>)> {
+    let (m, repair) = direct::codable(mesh)?;
     let opts = direct::DirectOptions {
         bits,
         input_vertices: Some(mesh.num_vertices() as u32),
         ..Default::default()
     };
-    match direct::codable(mesh).and_then(|(m, _)| direct::encode(&m, &opts)) {
-        Ok(b) => Some(b),
+    Ok((direct::encode(&m, &opts)?, repair))
+}
+
+/// The direct stream of `mesh` for `--direct always`, with a warning if the input had to be
+/// repaired.
+pub fn direct_stream(mesh: &subwave::Mesh, bits: u32, name: &str) -> Result<Vec<u8>> {
+    let (bytes, repair) = code_directly(mesh, bits).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    if let Some(s) = repair.as_ref().and_then(|r| r.repair_summary()) {
+        tracing::warn!("{name}: repaired the input into a manifold for the direct stream: {s}");
+    }
+    Ok(bytes)
+}
+
+/// The direct stream of `mesh` at `bits` for `--direct auto` (the remesh's own warnings
+/// already say what the repair did); `None`, with a warning, if the input cannot be coded
+/// as it is.
+fn direct_stream_quiet(mesh: &subwave::Mesh, bits: u32, name: &str) -> Option<Vec<u8>> {
+    match code_directly(mesh, bits) {
+        Ok((b, _)) => Some(b),
         Err(e) => {
             tracing::warn!("{name}: not coded as it is ({e}); the remesh is kept");
             None
