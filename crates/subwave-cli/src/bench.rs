@@ -124,3 +124,63 @@ pub fn decode(args: &crate::BenchDecodeArgs) -> Result<()> {
     out.flush()?;
     Ok(())
 }
+
+/// Runs `subwave bench entropy`: each bit plane's cumulative coefficient bytes against the
+/// empirical entropy of the quantization it completes
+/// ([`subwave::codec::entropy::coder_efficiency`]).
+pub fn entropy(args: &crate::BenchEntropyArgs) -> Result<()> {
+    let name = print::path(&args.stream);
+    let bytes = std::fs::read(&args.stream).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let r = subwave::codec::entropy::coder_efficiency(&bytes)
+        .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    if args.json {
+        let planes: Vec<_> = r
+            .planes
+            .iter()
+            .map(|p| {
+                serde_json::json!({
+                    "plane": p.plane,
+                    "bytes": p.bytes,
+                    "order0_bytes": p.order0_bytes,
+                    "parent_bytes": p.parent_bytes,
+                })
+            })
+            .collect();
+        let v = serde_json::json!({ "coefficients": r.coefficients, "planes": planes });
+        writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
+    } else {
+        writeln!(
+            out,
+            "{name}: {} coefficients; bytes of the coefficient chunks to the end of each bit plane against the empirical entropy of the coefficients known to that plane (order 0 per level and component; given the parent's magnitude)",
+            print::count(r.coefficients)
+        )?;
+        writeln!(
+            out,
+            "{:>6} {:>10} {:>10} {:>7} {:>12} {:>7}",
+            "plane", "bytes", "order 0", "ratio", "given parent", "ratio"
+        )?;
+        for p in &r.planes {
+            let ratio = |h: f64| {
+                if h > 0.0 {
+                    format!("{:.3}", p.bytes as f64 / h)
+                } else {
+                    "-".to_string()
+                }
+            };
+            writeln!(
+                out,
+                "{:>6} {:>10} {:>10.0} {:>7} {:>12.0} {:>7}",
+                p.plane,
+                p.bytes,
+                p.order0_bytes,
+                ratio(p.order0_bytes),
+                p.parent_bytes,
+                ratio(p.parent_bytes)
+            )?;
+        }
+    }
+    out.flush()?;
+    Ok(())
+}

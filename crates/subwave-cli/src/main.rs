@@ -241,6 +241,17 @@ pub struct BenchDecodeArgs {
     pub json: bool,
 }
 
+/// Arguments of `subwave bench entropy`.
+#[derive(Debug, clap::Args)]
+pub struct BenchEntropyArgs {
+    /// The stream (embedded layout, not lossless, not direct).
+    #[arg(value_name = "IN.swv")]
+    pub stream: PathBuf,
+    /// Print JSON (keys coefficients, planes: a list of {plane, bytes, order0_bytes, parent_bytes}).
+    #[arg(long)]
+    pub json: bool,
+}
+
 /// Arguments of `subwave compress-base`.
 #[derive(Debug, clap::Args)]
 pub struct CompressBaseArgs {
@@ -358,6 +369,9 @@ enum BenchCommand {
     Subdivide(BenchSubdivideArgs),
     /// Full decode of a `.swv` stream (median time, no file output).
     Decode(BenchDecodeArgs),
+    /// SPIHT's bytes per bit plane of an embedded stream against the empirical entropy of
+    /// its coefficients (order 0 per level and component, and given the parent).
+    Entropy(BenchEntropyArgs),
     /// Remeshing to subdivision connectivity: total and per-stage times.
     Remesh(remesh::BenchRemeshArgs),
 }
@@ -587,6 +601,7 @@ fn main() -> ExitCode {
         Command::Eval(args) => eval::run(&args),
         Command::Bench(BenchCommand::Subdivide(args)) => bench::subdivide(&args),
         Command::Bench(BenchCommand::Decode(args)) => bench::decode(&args),
+        Command::Bench(BenchCommand::Entropy(args)) => bench::entropy(&args),
         Command::Encode(args) => encode::run(&args),
         Command::Decode(args) => decode::run(&args),
         Command::Remesh(args) => remesh::run(&args),

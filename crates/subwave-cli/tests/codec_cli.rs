@@ -126,6 +126,24 @@ fn encode_decode_round_trip_and_prefixes() {
     .unwrap();
     assert_eq!(j["vertices"].as_u64(), Some(n as u64));
     assert!(j["decode_ms"].as_f64().unwrap() > 0.0);
+    // The coder against the entropy of its coefficients: one row per bit plane, the last
+    // one's bytes those of every coefficient chunk.
+    let j: Value =
+        serde_json::from_str(&ok(&["bench", "entropy", swv.to_str().unwrap(), "--json"])).unwrap();
+    let planes = j["planes"].as_array().unwrap();
+    assert!(planes.len() >= 8, "{j}");
+    assert_eq!(planes.last().unwrap()["plane"].as_u64(), Some(0));
+    let coded = std::fs::metadata(&swv).unwrap().len();
+    let last = planes.last().unwrap()["bytes"].as_u64().unwrap();
+    assert!(last > 0 && last < coded, "{j}");
+    for p in planes {
+        assert!(p["parent_bytes"].as_f64().unwrap() <= p["order0_bytes"].as_f64().unwrap() + 1e-6);
+    }
+    let text = ok(&["bench", "entropy", swv.to_str().unwrap()]);
+    assert!(
+        text.contains("order 0") && text.contains("given parent"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -184,6 +202,9 @@ fn lossless_trees_and_errors() {
         "x",
     ]);
     assert!(e.contains("not a tree number"), "{e}");
+    // No bit planes of one forest to weigh.
+    let e = fails(&["bench", "entropy", swv.to_str().unwrap()]);
+    assert!(e.contains("encode without --lossless"), "{e}");
     // Trees past the forest's are refused, not ignored (20 base faces: 30 base edges).
     let e = fails(&[
         "decode",

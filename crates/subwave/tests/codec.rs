@@ -1035,3 +1035,78 @@ fn lossless_line_levels_are_exact_and_safe() {
     }
     mutate_and_decode(&s);
 }
+
+/// `codec::entropy::coder_efficiency`: one entry per bit plane in coding order, cumulative
+/// chunk bytes, SPIHT within a few percent of the order-0 entropy of what it codes at the
+/// finer planes and never far below it, the parent's context never raising the bound; other
+/// stream kinds and truncated streams are refused.
+#[test]
+fn spiht_bytes_against_the_entropy_of_the_coefficients() {
+    use subwave::codec::entropy::coder_efficiency;
+    let h = bumpy(5);
+    let opts = EncodeOptions::default();
+    let s = encode(&h, &opts).unwrap();
+    let info = inspect(&s).unwrap();
+    let r = coder_efficiency(&s).unwrap();
+    assert_eq!(r.coefficients, 3 * (h.positions.len() - h.num_vertices(0)));
+    let planes: Vec<u32> = r.planes.iter().map(|p| p.plane).collect();
+    let want: Vec<u32> = (0..info.planes).rev().collect();
+    assert_eq!(planes, want);
+    let coded: u64 = info.chunks[1..].iter().map(|c| c.len as u64).sum();
+    assert_eq!(r.planes.last().unwrap().bytes, coded);
+    for w in r.planes.windows(2) {
+        assert!(w[1].bytes >= w[0].bytes);
+        assert!(w[1].order0_bytes >= w[0].order0_bytes - 1e-6);
+    }
+    for p in &r.planes {
+        assert!(p.parent_bytes <= p.order0_bytes + 1e-6, "{p:?}");
+    }
+    // The finest planes hold most of the bytes; there the coder is near the bound, and
+    // nearer than raw SPIHT bits (no contexts) are.
+    let raw = coder_efficiency(
+        &encode(
+            &h,
+            &EncodeOptions {
+                contexts: false,
+                ..opts.clone()
+            },
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    for (p, q) in r.planes.iter().zip(&raw.planes).rev().take(3) {
+        let ratio = p.bytes as f64 / p.order0_bytes;
+        let raw_ratio = q.bytes as f64 / q.order0_bytes;
+        assert!((0.9..1.1).contains(&ratio), "{p:?}: {ratio}");
+        assert!(
+            raw_ratio > ratio + 0.02,
+            "{q:?}: {raw_ratio} against {ratio}"
+        );
+    }
+    let trees = encode(
+        &h,
+        &EncodeOptions {
+            layout: Layout::Trees,
+            ..opts.clone()
+        },
+    )
+    .unwrap();
+    let lossless = encode(
+        &h,
+        &EncodeOptions {
+            lossless: true,
+            bits: 10,
+            ..opts.clone()
+        },
+    )
+    .unwrap();
+    for (what, stream) in [("per-tree", &trees), ("lossless", &lossless)] {
+        let e = coder_efficiency(stream).unwrap_err();
+        assert!(
+            matches!(&e, Error::InvalidArgument(m) if m.contains(what)),
+            "{what}: {e}"
+        );
+    }
+    let e = coder_efficiency(&s[..s.len() - 1]).unwrap_err();
+    assert!(matches!(e, Error::Decode { .. }), "{e}");
+}

@@ -10,6 +10,8 @@
 //! - [`direct`]: direct streams, an irregular mesh coded as it is (the base-mesh coder at a
 //!   coarse precision, then refinement planes) where a remesh does not pay;
 //! - [`eval`]: rate–distortion curves of progressive streams against the input mesh;
+//! - [`entropy`]: the bytes SPIHT spends per bit plane against the empirical entropy of the
+//!   coefficients it codes (`subwave bench entropy`);
 //! - [`forest`]: the edge-offspring forest (MPEG-4 AFX) and the quad vertex/face forest;
 //! - [`quantize`]: coefficient and position quantization (Maret eqs. 4.7-4.12);
 //! - [`spiht`]: the SPIHT coder of the detail coefficients (Maret Algorithm 1);
@@ -24,6 +26,7 @@
 pub mod basemesh;
 pub mod container;
 pub mod direct;
+pub mod entropy;
 pub mod eval;
 pub mod forest;
 pub mod lossless;

@@ -1550,6 +1550,59 @@ fn decode_in_pool(
     })
 }
 
+/// A whole embedded stream's forest, final coefficients and `(plane, bytes)` per bit-plane
+/// chunk ([`embedded_coefficients`]).
+pub(crate) type EmbeddedCoefficients = (Forest, Coefficients, Vec<(u32, u64)>);
+
+/// The coefficients of a whole embedded wavelet stream as its decoder ends with them (exact
+/// magnitudes and signs), with its forest and each bit plane's chunk size in coding order
+/// (`(plane, bytes)`): what [`super::entropy`] weighs the coder against.
+///
+/// # Errors
+/// [`Error::Decode`] for a damaged or truncated stream, [`Error::InvalidArgument`] for a
+/// lossless, direct or per-tree stream (their chunks are not the bit planes of one forest).
+pub(crate) fn embedded_coefficients(bytes: &[u8]) -> Result<EmbeddedCoefficients> {
+    let p = parse(bytes)?;
+    let refused = if p.flags & F_DIRECT != 0 {
+        Some("a direct stream (the input coded as it is) has no wavelet coefficients; encode with --direct never")
+    } else if p.flags & F_LOSSLESS != 0 {
+        Some("a lossless stream codes integer details level by level, not in bit planes; encode without --lossless")
+    } else if p.layout == Layout::Trees {
+        Some("a per-tree (trees layout) stream codes each tree's bit planes apart; encode with --layout embedded")
+    } else {
+        None
+    };
+    if let Some(why) = refused {
+        return Err(Error::InvalidArgument(why.into()));
+    }
+    let (base, _) = setup_base_mesh(&p, bytes)?;
+    let hierarchy =
+        Hierarchy::skeleton_without_finest_faces(&base, p.c.header.levels as u32, p.split)
+            .map_err(|e| {
+                derr(
+                    p.c.chunks[0].offset as usize,
+                    format!("base mesh chunk: {e}"),
+                )
+            })?;
+    let forest = setup_forest(&p, &hierarchy)?;
+    let mut buffers = DecodeBuffers::default();
+    let (coefs, _, _, _, complete) =
+        decode_coefficients(&p, &forest, bytes, &DecodeOptions::default(), &mut buffers)?;
+    if !complete {
+        return Err(derr(
+            bytes.len(),
+            "the stream ends before its last bit plane",
+        ));
+    }
+    let planes =
+        p.c.chunks
+            .iter()
+            .filter(|e| e.kind == ChunkKind::Plane)
+            .map(|e| (e.id, e.len as u64))
+            .collect();
+    Ok((forest, coefs, planes))
+}
+
 /// Decodes the coefficient chunks: the coefficients, bytes used, complete planes, planes and
 /// whether everything was decoded.
 fn decode_coefficients(
