@@ -10,7 +10,9 @@ use subwave::codec::normal_line::SnapOptions;
 use subwave::codec::prepare::{prepare_screened, PrepareOptions, Prepared};
 use subwave::codec::progressive::{encode, inspect, EncodeOptions, Layout, StreamInfo, Wavelet};
 use subwave::codec::quantize::ComponentMode;
+use subwave::hierarchy::Hierarchy;
 use subwave::io::read_mesh;
+use subwave::mesh::Mesh;
 use subwave::subdivision::refine::Split;
 use subwave::wavelet::triangle::DetailFrame;
 
@@ -240,6 +242,18 @@ pub fn comparison_line(c: &direct::Comparison, chosen: bool) -> String {
 }
 
 impl PrepareArgs {
+    /// Whether to ask for a quad hierarchy (Bertram's wavelets): a quad wavelet given
+    /// (`--wavelet linear|cubic`), or none given and `mesh` a semi-regular all-quad
+    /// (Catmull-Clark) mesh, which is then coded as it is with the cubic wavelet, the default
+    /// on quad meshes, rather than remeshed into triangles.
+    pub fn quads(&self, wavelet: Option<WaveletArg>, mesh: &Mesh) -> bool {
+        match wavelet {
+            Some(WaveletArg::Linear | WaveletArg::Cubic) => true,
+            Some(_) => false,
+            None => mesh.is_quad_mesh() && Hierarchy::detect(mesh, self.levels).is_ok(),
+        }
+    }
+
     /// The library options; `quads` asks for a quad hierarchy (Bertram's wavelets).
     pub fn options(&self, quads: bool) -> PrepareOptions {
         PrepareOptions {
@@ -310,10 +324,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
         return write_direct(args, &bytes, input_vertices, t0);
     }
     // A semi-regular mesh is used as it is; anything else is remeshed first.
-    let mut popts = args.prep.options(matches!(
-        args.wavelet,
-        Some(WaveletArg::Linear | WaveletArg::Cubic)
-    ));
+    let mut popts = args.prep.options(args.prep.quads(args.wavelet, &mesh));
     // A lossless stream codes every vertex of the remesh: more levels only make it larger;
     // its normal vertices go onto the lossless coder's normal lines of the stream's grid.
     popts.raise_levels = !args.lossless;

@@ -15,7 +15,7 @@ use subwave::codec::prepare::{prepare_screened, Prepared};
 use subwave::codec::progressive::{decode, encode, inspect, DecodeOptions, EncodeOptions};
 use subwave::io::read_mesh;
 
-use crate::encode::{DirectArg, WaveletArg};
+use crate::encode::DirectArg;
 use crate::svg::{self, Series};
 use crate::{print, progress, EvalArgs};
 
@@ -139,7 +139,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
         return report(args, &mesh, &references, None, &bytes, encode_ms, None);
     }
-    let quads = matches!(args.wavelet, Some(WaveletArg::Linear | WaveletArg::Cubic));
+    let quads = args.prep.quads(args.wavelet, &mesh);
     // `--direct auto`, as `subwave encode` weighs it: where the direct stream beats a remesh
     // that would be redone with more levels at its first two budgets, that is not done.
     let auto = args.prep.direct == DirectArg::Auto;

@@ -614,3 +614,60 @@ fn snapped_remeshes_code_losslessly_on_their_grid() {
     let o = run(&["remesh", m, "-o", r, "--grid-bits", "12"]);
     assert_eq!(o.status.code(), Some(2), "--grid-bits needs --normal");
 }
+
+/// A semi-regular all-quad (Catmull-Clark) mesh is coded as it is with the cubic wavelet
+/// when no wavelet is given (the documented default on quad meshes), not remeshed into
+/// triangles nor coded as an irregular mesh; an irregular quad mesh still is.
+#[test]
+fn catmull_clark_meshes_are_coded_as_they_are() {
+    let dir = tempfile::tempdir().unwrap();
+    let cube = dir.path().join("cube.obj");
+    write_mesh(&generate::cube(), &cube, None).unwrap();
+    let cc = dir.path().join("cc.obj");
+    ok(&[
+        "subdivide",
+        cube.to_str().unwrap(),
+        "-o",
+        cc.to_str().unwrap(),
+        "--scheme",
+        "catmull-clark",
+        "--levels",
+        "3",
+    ]);
+    let swv = dir.path().join("cc.swv");
+    let out = ok(&["encode", cc.to_str().unwrap(), "-o", swv.to_str().unwrap()]);
+    assert!(
+        out.contains("3 levels over 8 base vertices / 6 faces") && out.contains("cubic wavelet"),
+        "{out}"
+    );
+    assert!(
+        !out.contains("remeshed") && !out.contains("direct"),
+        "{out}"
+    );
+    let dec = dir.path().join("d.obj");
+    ok(&["decode", swv.to_str().unwrap(), "-o", dec.to_str().unwrap()]);
+    let d = read_mesh(&dec, None).unwrap();
+    let m = read_mesh(&cc, None).unwrap();
+    assert_eq!(
+        (d.num_vertices(), d.num_faces()),
+        (m.num_vertices(), m.num_faces())
+    );
+    assert!(d.is_quad_mesh());
+    // Lossless too, with the same default.
+    let out = ok(&[
+        "encode",
+        cc.to_str().unwrap(),
+        "-o",
+        swv.to_str().unwrap(),
+        "--lossless",
+    ]);
+    assert!(out.contains("cubic wavelet, lossless"), "{out}");
+    // The cube itself is no hierarchy: coded as an irregular mesh.
+    let out = ok(&[
+        "encode",
+        cube.to_str().unwrap(),
+        "-o",
+        swv.to_str().unwrap(),
+    ]);
+    assert!(!out.contains("cubic wavelet"), "{out}");
+}
