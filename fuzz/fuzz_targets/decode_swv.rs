@@ -1,11 +1,13 @@
 //! Fuzzes the `.swv` decoder: any bytes, any prefix, any tree selection must give a mesh or
-//! an `Error`, never a panic, and never allocate out of proportion to the input.
+//! an `Error`, never a panic, and never allocate out of proportion to the input. The coder
+//! efficiency report (`codec::entropy`, `subwave bench entropy`) decodes streams too.
 //!
 //! `cargo fuzz` builds with `--cfg fuzzing`, under which the container's checksums are not
 //! enforced (`codec::container::crc_matches`), so mutations reach the decoders behind them.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
+use subwave::codec::entropy::coder_efficiency;
 use subwave::codec::progressive::{decode, inspect, DecodeOptions, TreeDecoder};
 
 /// Streams declaring more finest-level vertices than this are only inspected: the decoder
@@ -21,6 +23,7 @@ fn small(bytes: &[u8]) -> bool {
 fuzz_target!(|data: &[u8]| {
     if small(data) {
         let _ = decode(data, &DecodeOptions::default());
+        let _ = coder_efficiency(data);
     }
     if let Some((&k, rest)) = data.split_first() {
         if !small(rest) {
