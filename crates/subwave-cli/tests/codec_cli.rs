@@ -204,7 +204,7 @@ fn lossless_trees_and_errors() {
     assert!(e.contains("not a tree number"), "{e}");
     // No bit planes of one forest to weigh.
     let e = fails(&["bench", "entropy", swv.to_str().unwrap()]);
-    assert!(e.contains("encode without --lossless"), "{e}");
+    assert!(e.contains("encode with --layout embedded"), "{e}");
     // Trees past the forest's are refused, not ignored (20 base faces: 30 base edges).
     let e = fails(&[
         "decode",

@@ -56,8 +56,9 @@ pub struct CoderEfficiency {
 ///
 /// # Errors
 /// [`crate::Error::Decode`] for a damaged or truncated stream (as
-/// [`super::progressive::decode`]), [`crate::Error::InvalidArgument`] for a lossless, direct
-/// or per-tree stream: re-encode with the embedded layout.
+/// [`super::progressive::decode`]), [`crate::Error::InvalidArgument`] for a direct, per-tree
+/// or lossless stream (the message says how to encode one this reads: `--direct never`,
+/// `--layout embedded`, without `--lossless`).
 pub fn coder_efficiency(stream: &[u8]) -> Result<CoderEfficiency> {
     let (forest, coefs, chunks) = super::progressive::embedded_coefficients(stream)?;
     // Signed magnitudes (0 where insignificant) and the class of each entry.

@@ -1398,6 +1398,17 @@ fn setup_base(p: &Parsed, bytes: &[u8]) -> Result<Base> {
 }
 
 /// The offspring forest of a stream's hierarchy, checked against the header.
+/// The stream's hierarchy over the decoded `base`, its coarse levels only (the finest faces
+/// are only the output's).
+fn setup_skeleton(p: &Parsed, base: &Mesh) -> Result<Hierarchy> {
+    Hierarchy::skeleton_without_finest_faces(base, p.c.header.levels as u32, p.split).map_err(|e| {
+        derr(
+            p.c.chunks[0].offset as usize,
+            format!("base mesh chunk: {e}"),
+        )
+    })
+}
+
 fn setup_forest(p: &Parsed, hierarchy: &Hierarchy) -> Result<Forest> {
     let h = &p.c.header;
     let forest = Forest::new(hierarchy)?;
@@ -1482,15 +1493,7 @@ fn decode_in_pool(
         });
     }
     let (base, base_q) = setup_base_mesh(&p, bytes)?;
-    let levels = p.c.header.levels as u32;
-    // The coarse levels only: the finest faces are only the output's.
-    let hierarchy =
-        Hierarchy::skeleton_without_finest_faces(&base, levels, p.split).map_err(|e| {
-            derr(
-                p.c.chunks[0].offset as usize,
-                format!("base mesh chunk: {e}"),
-            )
-        })?;
+    let hierarchy = setup_skeleton(&p, &base)?;
     let base_positions = base.positions;
     // The forest and coefficients on one side (the longest chain); on the other the synthesis
     // tables, the finest faces and the positions' buffer (its pages touched here, off the
@@ -1565,10 +1568,10 @@ pub(crate) fn embedded_coefficients(bytes: &[u8]) -> Result<EmbeddedCoefficients
     let p = parse(bytes)?;
     let refused = if p.flags & F_DIRECT != 0 {
         Some("a direct stream (the input coded as it is) has no wavelet coefficients; encode with --direct never")
-    } else if p.flags & F_LOSSLESS != 0 {
-        Some("a lossless stream codes integer details level by level, not in bit planes; encode without --lossless")
     } else if p.layout == Layout::Trees {
         Some("a per-tree (trees layout) stream codes each tree's bit planes apart; encode with --layout embedded")
+    } else if p.flags & F_LOSSLESS != 0 {
+        Some("a lossless stream codes integer details level by level, not in bit planes; encode without --lossless")
     } else {
         None
     };
@@ -1576,14 +1579,7 @@ pub(crate) fn embedded_coefficients(bytes: &[u8]) -> Result<EmbeddedCoefficients
         return Err(Error::InvalidArgument(why.into()));
     }
     let (base, _) = setup_base_mesh(&p, bytes)?;
-    let hierarchy =
-        Hierarchy::skeleton_without_finest_faces(&base, p.c.header.levels as u32, p.split)
-            .map_err(|e| {
-                derr(
-                    p.c.chunks[0].offset as usize,
-                    format!("base mesh chunk: {e}"),
-                )
-            })?;
+    let hierarchy = setup_skeleton(&p, &base)?;
     let forest = setup_forest(&p, &hierarchy)?;
     let mut buffers = DecodeBuffers::default();
     let (coefs, _, _, _, complete) =
