@@ -40,6 +40,12 @@ struct Report {
 pub fn compress(args: &CompressBaseArgs) -> Result<()> {
     let mut mesh = subwave::io::read_mesh(&args.mesh, None)?;
     crate::info::require_content(&mesh, &args.mesh)?;
+    crate::encode::warn_dropped(
+        &mut mesh,
+        &crate::print::path(&args.mesh),
+        None,
+        "a base-mesh stream",
+    );
     let input_vertices = mesh.num_vertices();
     // Only a mesh the coder refuses as it is gets repaired (a manifold one is coded as is).
     let needs_repair = args.repair

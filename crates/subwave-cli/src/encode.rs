@@ -241,6 +241,39 @@ pub fn comparison_line(c: &direct::Comparison, chosen: bool) -> String {
     }
 }
 
+/// Removes what a `.swv` stream does not code from `mesh`, with a warning naming it:
+/// vertices no face uses, texture coordinates and vertex colours (a stream holds positions,
+/// faces and crease tags).
+pub fn warn_uncoded(mesh: &mut Mesh, name: &str) {
+    let before = mesh.num_vertices();
+    mesh.remove_unreferenced();
+    let unused = match before - mesh.num_vertices() {
+        0 => None,
+        1 => Some("1 vertex no face uses".to_string()),
+        n => Some(format!("{n} vertices no face uses")),
+    };
+    warn_dropped(mesh, name, unused, "a .swv stream");
+}
+
+/// Removes the texture coordinates and vertex colours of `mesh`, which `stream` does not
+/// code, with a warning naming them and `more` (something else not coded) on standard
+/// error.
+pub fn warn_dropped(mesh: &mut Mesh, name: &str, more: Option<String>, stream: &str) {
+    let mut dropped: Vec<String> = more.into_iter().collect();
+    if mesh.uvs.take().is_some() | mesh.face_uvs.take().is_some() {
+        dropped.push("texture coordinates".to_string());
+    }
+    if mesh.colors.take().is_some() {
+        dropped.push("vertex colours".to_string());
+    }
+    if !dropped.is_empty() {
+        tracing::warn!(
+            "{name}: not coded: {} ({stream} holds positions, faces and crease tags)",
+            dropped.join(", ")
+        );
+    }
+}
+
 impl PrepareArgs {
     /// Whether to ask for a quad hierarchy (Bertram's wavelets): a quad wavelet given
     /// (`--wavelet linear|cubic`), or none given and `mesh` a semi-regular all-quad
@@ -302,7 +335,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
         bail!("--bits {b}: a lossless stream's position grid has at most 24 bits");
     }
     let mut mesh = read_mesh(&args.mesh, args.format)?;
-    mesh.remove_unreferenced();
+    warn_uncoded(&mut mesh, &name);
     let input_vertices = mesh.num_vertices();
     let t0 = Instant::now();
     if args.prep.direct == DirectArg::Always {

@@ -117,7 +117,7 @@ fn file_name(args: &EvalArgs) -> String {
 pub fn run(args: &EvalArgs) -> Result<()> {
     let name = print::path(&args.mesh);
     let mut mesh = read_mesh(&args.mesh, args.format)?;
-    mesh.remove_unreferenced();
+    crate::encode::warn_uncoded(&mut mesh, &name);
     let references = args
         .reference
         .iter()

@@ -671,3 +671,62 @@ fn catmull_clark_meshes_are_coded_as_they_are() {
     ]);
     assert!(!out.contains("cubic wavelet"), "{out}");
 }
+
+/// What a stream does not code is named on standard error, and the stream is still made:
+/// unused vertices, texture coordinates.
+#[test]
+fn uncoded_attributes_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut m = generate::midpoint_split(&generate::icosahedron());
+    m.positions.push(subwave::DVec3::new(5.0, 0.0, 0.0));
+    m.uvs = Some(vec![[0.25, 0.5]; m.positions.len()]);
+    let mesh = dir.path().join("uv.obj");
+    write_mesh(&m, &mesh, None).unwrap();
+    let back = read_mesh(&mesh, None).unwrap();
+    assert!(
+        back.uvs.is_some() || back.face_uvs.is_some(),
+        "the OBJ keeps its uvs"
+    );
+    let swv = dir.path().join("uv.swv");
+    let o = run(&[
+        "encode",
+        mesh.to_str().unwrap(),
+        "-o",
+        swv.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("not coded: 1 vertex no face uses, texture coordinates"),
+        "{e}"
+    );
+    let swb = dir.path().join("uv.swb");
+    let o = run(&[
+        "compress-base",
+        mesh.to_str().unwrap(),
+        "-o",
+        swb.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("not coded: texture coordinates (a base-mesh stream"),
+        "{e}"
+    );
+    // A mesh with nothing to drop gets no such line.
+    let plain = dir.path().join("plain.obj");
+    write_mesh(
+        &generate::midpoint_split(&generate::icosahedron()),
+        &plain,
+        None,
+    )
+    .unwrap();
+    let o = run(&[
+        "encode",
+        plain.to_str().unwrap(),
+        "-o",
+        swv.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0));
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("not coded"));
+}
