@@ -687,46 +687,26 @@ fn uncoded_attributes_are_named() {
         back.uvs.is_some() || back.face_uvs.is_some(),
         "the OBJ keeps its uvs"
     );
-    let swv = dir.path().join("uv.swv");
-    let o = run(&[
-        "encode",
-        mesh.to_str().unwrap(),
-        "-o",
-        swv.to_str().unwrap(),
-    ]);
-    assert_eq!(o.status.code(), Some(0));
-    let e = String::from_utf8_lossy(&o.stderr);
+    // Standard error of a command that must succeed.
+    let warnings = |cmd: &str, input: &std::path::Path, out: &str| {
+        let out = dir.path().join(out);
+        let o = run(&[cmd, input.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(0), "{cmd}");
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let e = warnings("encode", &mesh, "uv.swv");
     assert!(
         e.contains("not coded: 1 vertex no face uses, texture coordinates"),
         "{e}"
     );
-    let swb = dir.path().join("uv.swb");
-    let o = run(&[
-        "compress-base",
-        mesh.to_str().unwrap(),
-        "-o",
-        swb.to_str().unwrap(),
-    ]);
-    assert_eq!(o.status.code(), Some(0));
-    let e = String::from_utf8_lossy(&o.stderr);
+    let e = warnings("compress-base", &mesh, "uv.swb");
     assert!(
         e.contains("not coded: texture coordinates (a base-mesh stream"),
         "{e}"
     );
     // A mesh with nothing to drop gets no such line.
     let plain = dir.path().join("plain.obj");
-    write_mesh(
-        &generate::midpoint_split(&generate::icosahedron()),
-        &plain,
-        None,
-    )
-    .unwrap();
-    let o = run(&[
-        "encode",
-        plain.to_str().unwrap(),
-        "-o",
-        swv.to_str().unwrap(),
-    ]);
-    assert_eq!(o.status.code(), Some(0));
-    assert!(!String::from_utf8_lossy(&o.stderr).contains("not coded"));
+    let m = generate::midpoint_split(&generate::icosahedron());
+    write_mesh(&m, &plain, None).unwrap();
+    assert!(!warnings("encode", &plain, "plain.swv").contains("not coded"));
 }
