@@ -7,10 +7,9 @@ use anyhow::{bail, Result};
 use clap::ValueEnum;
 use subwave::codec::direct;
 use subwave::codec::normal_line::SnapOptions;
-use subwave::codec::prepare::{prepare_screened, PrepareOptions, Prepared};
+use subwave::codec::prepare::{prepare_screened, PrepareOptions, Prepared, Quads};
 use subwave::codec::progressive::{encode, inspect, EncodeOptions, Layout, StreamInfo, Wavelet};
 use subwave::codec::quantize::ComponentMode;
-use subwave::hierarchy::Hierarchy;
 use subwave::io::read_mesh;
 use subwave::mesh::Mesh;
 use subwave::subdivision::refine::Split;
@@ -275,20 +274,20 @@ pub fn warn_dropped(mesh: &mut Mesh, name: &str, more: Option<String>, stream: &
 }
 
 impl PrepareArgs {
-    /// Whether to ask for a quad hierarchy (Bertram's wavelets): a quad wavelet given
-    /// (`--wavelet linear|cubic`), or none given and `mesh` a semi-regular all-quad
-    /// (Catmull-Clark) mesh, which is then coded as it is with the cubic wavelet, the default
-    /// on quad meshes, rather than remeshed into triangles.
-    pub fn quads(&self, wavelet: Option<WaveletArg>, mesh: &Mesh) -> bool {
+    /// The hierarchy's split for `--wavelet`: quads for a quad wavelet (linear, cubic),
+    /// triangles for a triangle one, and without one a semi-regular mesh of either split as
+    /// it is (a Catmull-Clark one then gets the cubic wavelet, the default on quad meshes)
+    /// and anything else remeshed into triangles.
+    pub fn quads(wavelet: Option<WaveletArg>) -> Quads {
         match wavelet {
-            Some(WaveletArg::Linear | WaveletArg::Cubic) => true,
-            Some(_) => false,
-            None => mesh.is_quad_mesh() && Hierarchy::detect(mesh, self.levels).is_ok(),
+            Some(WaveletArg::Linear | WaveletArg::Cubic) => Quads::Yes,
+            Some(_) => Quads::No,
+            None => Quads::IfSemiRegular,
         }
     }
 
-    /// The library options; `quads` asks for a quad hierarchy (Bertram's wavelets).
-    pub fn options(&self, quads: bool) -> PrepareOptions {
+    /// The library options; `quads` is the hierarchy's split ([`PrepareArgs::quads`]).
+    pub fn options(&self, quads: Quads) -> PrepareOptions {
         PrepareOptions {
             levels: self.levels,
             base_faces: self.base_faces.map(|n| n as usize),
@@ -357,7 +356,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
         return write_direct(args, &bytes, input_vertices, t0);
     }
     // A semi-regular mesh is used as it is; anything else is remeshed first.
-    let mut popts = args.prep.options(args.prep.quads(args.wavelet, &mesh));
+    let mut popts = args.prep.options(PrepareArgs::quads(args.wavelet));
     // A lossless stream codes every vertex of the remesh: more levels only make it larger;
     // its normal vertices go onto the lossless coder's normal lines of the stream's grid.
     popts.raise_levels = !args.lossless;

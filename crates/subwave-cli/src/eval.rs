@@ -139,7 +139,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
         return report(args, &mesh, &references, None, &bytes, encode_ms, None);
     }
-    let quads = args.prep.quads(args.wavelet, &mesh);
+    let quads = crate::encode::PrepareArgs::quads(args.wavelet);
     // `--direct auto`, as `subwave encode` weighs it: where the direct stream beats a remesh
     // that would be redone with more levels at its first two budgets, that is not done.
     let auto = args.prep.direct == DirectArg::Auto;

@@ -184,8 +184,11 @@ pub struct PrepareOptions {
     /// Base faces of a remesh (`None`: [`DEFAULT_BASE_FACES`]); ignored for a detected
     /// hierarchy.
     pub base_faces: Option<usize>,
-    /// Remesh to a quad hierarchy (Bertram's wavelets) instead of triangles.
-    pub quads: bool,
+    /// Which split the hierarchy has: [`Quads::No`] (the default) detects a semi-regular
+    /// triangle mesh and remeshes anything else into triangles; [`Quads::Yes`] detects a
+    /// Catmull-Clark quad mesh and remeshes anything else into quads (Bertram's wavelets);
+    /// [`Quads::IfSemiRegular`] detects either split and remeshes into triangles.
+    pub quads: Quads,
     /// Feature edges of a remesh: dihedral angle in degrees (`None`: see
     /// [`PrepareOptions::detect_features`]).
     pub sharp_angle: Option<f64>,
@@ -230,12 +233,25 @@ pub struct PrepareOptions {
     pub snap: Option<SnapOptions>,
 }
 
+/// The split of the hierarchy [`prepare`] returns ([`PrepareOptions::quads`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Quads {
+    /// Triangles: a semi-regular triangle mesh as it is, anything else remeshed.
+    #[default]
+    No,
+    /// Quads: a Catmull-Clark quad mesh as it is, anything else remeshed into quads.
+    Yes,
+    /// A semi-regular mesh of either split as it is (a Catmull-Clark one with quads);
+    /// anything else remeshed into triangles.
+    IfSemiRegular,
+}
+
 impl Default for PrepareOptions {
     fn default() -> Self {
         PrepareOptions {
             levels: None,
             base_faces: None,
-            quads: false,
+            quads: Quads::No,
             sharp_angle: None,
             detect_features: true,
             force_remesh: false,
@@ -322,8 +338,8 @@ impl Prepared {
     }
 }
 
-/// The hierarchy to code for `mesh`: detected if `mesh` is semi-regular (and the split kind
-/// matches [`PrepareOptions::quads`]), else remeshed, non-manifold input being repaired
+/// The hierarchy to code for `mesh`: detected if `mesh` is semi-regular (with a split
+/// [`PrepareOptions::quads`] takes), else remeshed, non-manifold input being repaired
 /// (split) rather than refused. `progress(stage, fraction)` reports the remesher's stages.
 ///
 /// # Errors
@@ -355,11 +371,13 @@ pub fn prepare_screened(
             "the mesh has no faces: nothing to code".to_string(),
         ));
     }
-    let shape_fits = if opts.quads {
-        mesh.is_quad_mesh()
-    } else {
-        mesh.is_triangle_mesh()
+    let shape_fits = match opts.quads {
+        Quads::No => mesh.is_triangle_mesh(),
+        Quads::Yes => mesh.is_quad_mesh(),
+        Quads::IfSemiRegular => mesh.is_triangle_mesh() || mesh.is_quad_mesh(),
     };
+    // The split of a remesh.
+    let quads = opts.quads == Quads::Yes;
     if shape_fits && !opts.force_remesh {
         if let Ok((hierarchy, _)) = Hierarchy::detect(mesh, opts.levels) {
             return Ok(Prepared {
@@ -390,7 +408,7 @@ pub fn prepare_screened(
             .levels
             .unwrap_or_else(|| default_levels(triangles, base_faces)),
         base_faces,
-        quads: opts.quads,
+        quads,
         sharp_angle,
         repair: true,
         ..RemeshOptions::default()
@@ -399,9 +417,9 @@ pub fn prepare_screened(
     let run_normal = opts
         .normal
         .unwrap_or(sharp_angle.is_none() || opts.snap.is_some())
-        && !opts.quads;
+        && !quads;
     // The input's index for the normal re-sampling or, on a MAPS remesh, the offsets alone.
-    let index_surface = (run_normal || opts.fit) && !opts.quads;
+    let index_surface = (run_normal || opts.fit) && !quads;
     // The normal re-sampling's index of the input, the one that measures the remesh's
     // distance, and the input's samples are made beside the first remesh.
     let (first, surface, input_bvh, input_samples) = std::thread::scope(|scope| {
